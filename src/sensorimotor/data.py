@@ -1,0 +1,210 @@
+"""Sensorimotor databases: the ``.npz`` files, their checks, splits and scaling.
+
+A database holds ``sensors`` (N, 5), ``motors`` (N, 2) and ``poses`` (N, 3), all float32, and
+``meta``, a JSON string (world, seed, steps, sensor layout, package version). Row t holds s_t,
+the command m_t chosen after seeing s_t (it leads to s_{t+1}) and the pose where s_t was read.
+Splits are by position: the first 80 % train, the next 10 % validation, the last 10 % test.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import tempfile
+import zipfile
+from collections.abc import Callable
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from sensorimotor import __version__
+from sensorimotor.errors import InputError
+from sensorimotor.sim import SensorLayout, rollout
+from sensorimotor.world import World, world_from_dict
+
+SPLITS = {"train": (0.0, 0.8), "val": (0.8, 0.9), "test": (0.9, 1.0)}
+ARRAYS = {"sensors": 5, "motors": 2, "poses": 3}  # name -> columns
+
+
+@dataclass(frozen=True, eq=False)
+class Database:
+    """A loaded database: float32 arrays plus the ``meta`` that says where they came from."""
+
+    sensors: np.ndarray = field(repr=False)  # (N, 5) float32 readings
+    motors: np.ndarray = field(repr=False)  # (N, 2) float32 (d, r)
+    poses: np.ndarray = field(repr=False)  # (N, 3) float32 (x, y, heading) where s_t is read
+    meta: dict
+    path: Path | None = None
+
+    def __len__(self) -> int:
+        return len(self.sensors)
+
+    @property
+    def world(self) -> World:
+        return world_from_dict(self.meta["world"], f"{self.path}: meta.world")
+
+    @property
+    def max_range(self) -> float:
+        return float(self.meta.get("sensor_layout", {}).get("max_range", 10.0))
+
+    def split(self, name: str) -> slice:
+        """Row range of split ``train``, ``val`` or ``test``."""
+        return split_slice(len(self), name)
+
+    def take(self, name: str) -> Database:
+        """The rows of one split, as a Database of its own (views, no copy)."""
+        s = self.split(name)
+        return Database(self.sensors[s], self.motors[s], self.poses[s], self.meta, self.path)
+
+
+def split_slice(n: int, name: str) -> slice:
+    """Rows of split ``name`` in a database of ``n`` rows (train 80 %, val 10 %, test 10 %)."""
+    lo, hi = SPLITS[name]
+    return slice(math.floor(n * lo + 1e-9), math.floor(n * hi + 1e-9))
+
+
+def scale_sensors(sensors: np.ndarray, max_range: float = 10.0) -> np.ndarray:
+    """Readings divided by the range, into [0, 1]."""
+    return (np.asarray(sensors, dtype=np.float32) / np.float32(max_range)).astype(np.float32)
+
+
+def scale_motors(motors: np.ndarray) -> np.ndarray:
+    """``d`` as is (already in [0, 1)), ``r`` divided by pi."""
+    out = np.asarray(motors, dtype=np.float32).copy()
+    out[:, 1] /= np.float32(math.pi)
+    return out
+
+
+def generate(
+    world: World,
+    steps: int,
+    seed: int = 0,
+    layout: SensorLayout = SensorLayout(),
+    noise_std: float = 0.0,
+    progress: Callable[[int], None] | None = None,
+) -> Database:
+    """Roll the paper's behaviour out for ``steps`` steps and package it as a Database."""
+    run = rollout(world, steps, seed, layout, noise_std, progress=progress)
+    meta = {
+        "format": "sensorimotor-database/1",
+        "world": world.to_dict(),
+        "seed": int(seed),
+        "steps": int(steps),
+        "sensor_layout": layout.to_dict(),
+        "noise_std": float(noise_std),
+        "behaviour": "paper IV.C: min(s) < 1 -> (0, U(pi - pi/10, pi + pi/10)); "
+        "else (U(0, 1), U(-pi/6, pi/6))",
+        "version": __version__,
+    }
+    return Database(
+        run.sensors.astype(np.float32),
+        run.motors.astype(np.float32),
+        run.poses.astype(np.float32),
+        meta,
+    )
+
+
+def check_writable(path: str | Path) -> Path:
+    """Refuse early an output path whose folder is missing or cannot be written."""
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    if path.is_dir():
+        raise InputError(f"{path}: is a folder, not a file path")
+    if not folder.is_dir():
+        raise InputError(f"{path}: folder {folder} does not exist")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise InputError(f"{path}: folder {folder} is not writable")
+    return path
+
+
+@contextmanager
+def atomic_path(path: Path, suffix: str = ""):
+    """Yield a temporary path beside ``path``; rename it onto ``path`` only if the block succeeds."""
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise InputError(f"{path}: folder {folder} does not exist")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".tmp{suffix}", dir=folder)
+    except OSError as err:
+        raise InputError(f"{path}: cannot write in {folder} ({err.strerror})") from None
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def save_database(db: Database, path: str | Path) -> Path:
+    """Write ``db`` to ``path`` (.npz) through a temporary file in the same folder."""
+    path = Path(path)
+    with atomic_path(path, ".npz") as tmp, open(tmp, "wb") as f:
+        np.savez(
+            f,
+            sensors=db.sensors,
+            motors=db.motors,
+            poses=db.poses,
+            meta=np.array(json.dumps(db.meta)),
+        )
+    return path
+
+
+def load_database(path: str | Path) -> Database:
+    """Read and check a database; any problem is an InputError naming the file."""
+    path = Path(path)
+    if not path.exists():
+        raise InputError(f"{path}: database not found")
+    if path.is_dir():
+        raise InputError(f"{path}: is a folder, not a database (.npz)")
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            missing = [k for k in (*ARRAYS, "meta") if k not in npz.files]
+            if missing:
+                raise InputError(f"{path}: not a sensorimotor database (missing {missing[0]!r})")
+            arrays = {k: npz[k] for k in ARRAYS}
+            meta_raw = npz["meta"]
+    except InputError:
+        raise
+    except (zipfile.BadZipFile, EOFError) as err:
+        raise InputError(f"{path}: truncated or not an .npz file ({err})") from None
+    except (OSError, ValueError) as err:
+        raise InputError(f"{path}: cannot read as .npz ({err})") from None
+    n = None
+    for name, cols in ARRAYS.items():
+        a = arrays[name]
+        if a.ndim != 2 or a.shape[1] != cols:
+            raise InputError(f"{path}: {name!r} must have shape (N, {cols}), got {a.shape}")
+        if n is not None and len(a) != n:
+            raise InputError(f"{path}: {name!r} has {len(a)} rows, expected {n}")
+        n = len(a)
+        if not np.issubdtype(a.dtype, np.floating):
+            raise InputError(f"{path}: {name!r} must be floating point, got {a.dtype}")
+        if not np.isfinite(a).all():
+            raise InputError(f"{path}: {name!r} contains NaN or inf")
+    if n == 0:
+        raise InputError(f"{path}: database is empty")
+    try:
+        meta = json.loads(str(meta_raw))
+        world_from_dict(meta["world"], f"{path}: meta.world")
+    except InputError:
+        raise
+    except (ValueError, KeyError, TypeError) as err:
+        raise InputError(f"{path}: 'meta' is not valid database metadata ({err})") from None
+    return Database(
+        *(arrays[k].astype(np.float32, copy=False) for k in ARRAYS), meta=meta, path=path
+    )
+
+
+def file_hash(path: str | Path) -> str:
+    """SHA-256 of a file's bytes (what run folders record of their data)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()

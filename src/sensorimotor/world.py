@@ -1,0 +1,165 @@
+"""Worlds: a walled rectangle plus straight inner walls, read from TOML world files.
+
+A world's geometry is one ``(S, 4)`` float64 array of segments ``x0, y0, x1, y1``: the four
+outer walls first, then the inner walls in file order. Everything downstream (ray casting,
+events, plots) reads that array and nothing else.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from sensorimotor.errors import InputError
+
+BUILTIN_WORLDS = ("square", "rooms1", "rooms2")
+START_CLEARANCE = 1.0  # a start position keeps at least this distance to every wall (units)
+
+
+@dataclass(frozen=True, eq=False)
+class World:
+    """A ``width x height`` rectangle whose edges are walls, plus inner wall segments."""
+
+    name: str
+    width: float
+    height: float
+    walls: np.ndarray = field(repr=False)
+    """(N, 4) float64 inner walls ``x0, y0, x1, y1``; the outer walls are implied."""
+
+    @property
+    def segments(self) -> np.ndarray:
+        """(4 + N, 4) float64: the outer walls (bottom, right, top, left), then the inner walls."""
+        w, h = self.width, self.height
+        outer = np.array([[0, 0, w, 0], [w, 0, w, h], [w, h, 0, h], [0, h, 0, 0]], dtype=np.float64)
+        return np.concatenate([outer, self.walls]).astype(np.float64)
+
+    def to_dict(self) -> dict:
+        """JSON-ready description: what a database's ``meta`` records of its world."""
+        return {
+            "name": self.name,
+            "size": [self.width, self.height],
+            "walls": self.walls.tolist(),
+        }
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, World) and self.to_dict() == other.to_dict()
+
+    def __hash__(self) -> int:
+        return hash(repr(self.to_dict()))
+
+
+def world_from_dict(data: dict, source: str = "<dict>") -> World:
+    """Validate a world description (the TOML keys) and build the World; InputError if bad."""
+
+    def fail(problem: str) -> InputError:
+        return InputError(f"{source}: {problem}")
+
+    if not isinstance(data, dict):
+        raise fail("a world must be a table with keys 'size' and 'walls'")
+    unknown = sorted(set(data) - {"name", "size", "walls"})
+    if unknown:
+        raise fail(f"unknown key {unknown[0]!r} (allowed: name, size, walls)")
+    for key in ("size", "walls"):
+        if key not in data:
+            raise fail(f"missing key {key!r}")
+
+    size = data["size"]
+    if isinstance(size, list):
+        if len(size) != 2:
+            raise fail(f"'size' must be a number or [width, height], got {size!r}")
+        width, height = size
+    else:
+        width = height = size
+    for value in (width, height):
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise fail(f"'size' must be numbers, got {size!r}")
+        if not math.isfinite(value):
+            raise fail(f"'size' is not a finite number: {size!r}")
+        if value <= 0:
+            raise fail(f"'size' must be positive, got {size!r}")
+    width, height = float(width), float(height)
+
+    walls = data["walls"]
+    if not isinstance(walls, list):
+        raise fail(f"'walls' must be a list of [x0, y0, x1, y1], got {walls!r}")
+    rows = []
+    for i, wall in enumerate(walls):
+        if not isinstance(wall, list) or len(wall) != 4:
+            raise fail(f"wall {i} must be 4 numbers [x0, y0, x1, y1], got {wall!r}")
+        for v in wall:
+            if isinstance(v, bool) or not isinstance(v, int | float):
+                raise fail(f"wall {i} must be 4 numbers [x0, y0, x1, y1], got {wall!r}")
+            if not math.isfinite(v):
+                raise fail(f"wall {i} has a coordinate that is not a finite number: {wall!r}")
+        x0, y0, x1, y1 = (float(v) for v in wall)
+        if not (0 <= x0 <= width and 0 <= x1 <= width and 0 <= y0 <= height and 0 <= y1 <= height):
+            raise fail(f"wall {i} {wall!r} lies outside the {width:g} x {height:g} world")
+        if x0 == x1 and y0 == y1:
+            raise fail(f"wall {i} {wall!r} has zero length")
+        rows.append((x0, y0, x1, y1))
+
+    name = data.get("name", Path(source).stem)
+    if not isinstance(name, str) or not name:
+        raise fail(f"'name' must be a non-empty string, got {name!r}")
+    world = World(name, width, height, np.array(rows, dtype=np.float64).reshape(-1, 4))
+    if free_start_cells(world).size == 0:
+        raise fail(f"no free start position (every point is within {START_CLEARANCE:g} of a wall)")
+    return world
+
+
+def load_world(spec: str | Path) -> World:
+    """A built-in world by name (``square``, ``rooms1``, ``rooms2``) or a TOML world file's path."""
+    spec_str = str(spec)
+    if spec_str in BUILTIN_WORLDS:
+        text = resources.files("sensorimotor.worlds").joinpath(f"{spec_str}.toml").read_text()
+        return world_from_dict(tomllib.loads(text), f"{spec_str}.toml")
+    path = Path(spec)
+    if not path.exists():
+        if path.suffix.lower() != ".toml" and "/" not in spec_str:
+            raise InputError(
+                f"unknown world {spec_str!r}: use one of {', '.join(BUILTIN_WORLDS)} "
+                "or the path of a .toml world file"
+            )
+        raise InputError(f"{path}: world file not found")
+    if path.is_dir():
+        raise InputError(f"{path}: is a folder, not a world file")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as err:
+        raise InputError(f"{path}: cannot read world file ({err.__class__.__name__})") from None
+    if not text.strip():
+        raise InputError(f"{path}: empty world file")
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise InputError(f"{path}: not valid TOML ({err})") from None
+    return world_from_dict(data, str(path))
+
+
+def point_segment_distance(segments: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Distance from points ``(x, y)`` (shape P) to each segment (S, 4): an (P, S) array.
+
+    The closest point of segment ``a + u (b - a)`` is at ``u = clip(((p - a).(b - a)) / |b - a|^2,
+    0, 1)``.
+    """
+    x = np.asarray(x, dtype=np.float64)[:, None]
+    y = np.asarray(y, dtype=np.float64)[:, None]
+    ax, ay, bx, by = (segments[:, i][None, :] for i in range(4))
+    ex, ey = bx - ax, by - ay
+    u = np.clip(((x - ax) * ex + (y - ay) * ey) / (ex * ex + ey * ey), 0.0, 1.0)
+    return np.hypot(x - (ax + u * ex), y - (ay + u * ey))
+
+
+def free_start_cells(world: World, resolution: float = 0.25) -> np.ndarray:
+    """(P, 2) grid points at least START_CLEARANCE from every wall: proof that a start exists."""
+    xs = np.arange(resolution / 2, world.width, resolution)
+    ys = np.arange(resolution / 2, world.height, resolution)
+    gx, gy = np.meshgrid(xs, ys)
+    gx, gy = gx.ravel(), gy.ravel()
+    ok = point_segment_distance(world.segments, gx, gy).min(axis=1) >= START_CLEARANCE
+    return np.stack([gx[ok], gy[ok]], axis=1)
