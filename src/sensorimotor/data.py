@@ -23,7 +23,7 @@ import numpy as np
 
 from sensorimotor import __version__
 from sensorimotor.errors import InputError
-from sensorimotor.sim import SensorLayout, rollout
+from sensorimotor.sim import DEFAULT_LAYOUT, SensorLayout, rollout
 from sensorimotor.world import World, world_from_dict
 
 SPLITS = {"train": (0.0, 0.8), "val": (0.8, 0.9), "test": (0.9, 1.0)}
@@ -83,7 +83,7 @@ def generate(
     world: World,
     steps: int,
     seed: int = 0,
-    layout: SensorLayout = SensorLayout(),
+    layout: SensorLayout = DEFAULT_LAYOUT,
     noise_std: float = 0.0,
     progress: Callable[[int], None] | None = None,
 ) -> Database:
@@ -123,7 +123,7 @@ def check_writable(path: str | Path) -> Path:
 
 @contextmanager
 def atomic_path(path: Path, suffix: str = ""):
-    """Yield a temporary path beside ``path``; rename it onto ``path`` only if the block succeeds."""
+    """Yield a temporary path beside ``path``, renamed onto ``path`` if the block succeeds."""
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():

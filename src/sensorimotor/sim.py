@@ -36,6 +36,9 @@ class SensorLayout:
         return {"angles": list(self.angles), "max_range": self.max_range}
 
 
+DEFAULT_LAYOUT = SensorLayout()
+
+
 @numba.njit(cache=True, fastmath=False)
 def _cast(segments, x, y, dx, dy, max_range):
     """Distance from (x, y) along unit direction (dx, dy) to the first segment, capped."""
@@ -59,7 +62,7 @@ def _cast(segments, x, y, dx, dy, max_range):
 
 @numba.njit(cache=True)
 def cast_rays(segments, x, y, heading, angles, max_range, out):
-    """Write into ``out`` (R,) the distance along each ray ``heading + angles[i]`` to the first wall.
+    """Write into ``out`` (R,) the distance along each ray ``heading + angles[i]`` to a wall.
 
     A ray ``p + t u`` (t >= 0, |u| = 1) meets segment ``a + s e`` (0 <= s <= 1, e = b - a) where
     ``p + t u = a + s e``. Crossing both sides with ``e`` and with ``u`` (``c(v, w) = v_x w_y -
@@ -161,7 +164,7 @@ def rollout(
     world: World,
     steps: int,
     seed: int | np.random.Generator = 0,
-    layout: SensorLayout = SensorLayout(),
+    layout: SensorLayout = DEFAULT_LAYOUT,
     noise_std: float = 0.0,
     chunk: int = 200_000,
     progress: Callable[[int], None] | None = None,
@@ -205,7 +208,7 @@ def rollout(
 
 
 def read_sensors(
-    world: World, poses: np.ndarray, layout: SensorLayout = SensorLayout()
+    world: World, poses: np.ndarray, layout: SensorLayout = DEFAULT_LAYOUT
 ) -> np.ndarray:
     """Noiseless readings (P, R) at each pose (P, 3): the figures' and the analysis' ray caster."""
     poses = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
