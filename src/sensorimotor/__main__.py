@@ -1,0 +1,3 @@
+from sensorimotor.cli import main
+
+main()

@@ -1,0 +1,54 @@
+"""Shared fixtures: small real databases, and the real command line in a subprocess."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from sensorimotor.data import generate, save_database
+from sensorimotor.world import load_world
+
+
+def run_cli(*args: str | Path, cwd: Path | None = None, timeout: float = 600):
+    """Run ``python -m sensorimotor ARGS`` and return the CompletedProcess (text output)."""
+    return subprocess.run(
+        [sys.executable, "-m", "sensorimotor", *map(str, args)],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        timeout=timeout,
+    )
+
+
+def assert_one_line_error(proc, *needles: str) -> None:
+    """Exit 2, one line on stderr that contains every needle, no traceback."""
+    assert proc.returncode == 2, (proc.returncode, proc.stdout, proc.stderr)
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1, proc.stderr
+    assert "Traceback" not in proc.stderr
+    for needle in needles:
+        assert needle in lines[0], (needle, lines[0])
+
+
+@pytest.fixture
+def cli():
+    return run_cli
+
+
+@pytest.fixture(scope="session")
+def square_db_path(tmp_path_factory) -> Path:
+    """A 20,000-step Square database (seed 0)."""
+    path = tmp_path_factory.mktemp("data") / "square.npz"
+    save_database(generate(load_world("square"), 20_000, seed=0), path)
+    return path
+
+
+@pytest.fixture(scope="session")
+def rooms1_db_path(tmp_path_factory) -> Path:
+    """A 20,000-step Rooms1 database (seed 1)."""
+    path = tmp_path_factory.mktemp("data") / "rooms1.npz"
+    save_database(generate(load_world("rooms1"), 20_000, seed=1), path)
+    return path
