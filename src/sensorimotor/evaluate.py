@@ -1,0 +1,171 @@
+"""Prediction error of trained encoders, the two baselines, and the representation z_s.
+
+The error is the paper's L2 error (Eq. 1): per step, the squared error summed over the 5
+scaled sensors; then the mean over every predicted step of the split. Recurrent models run over
+the whole split from a zero state, carrying it, as an agent would online.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from sensorimotor.data import Database, scale_motors, scale_sensors
+from sensorimotor.errors import InputError
+from sensorimotor.models import ModelConfig, SensorimotorEncoder, build_model
+
+CHUNK = 20_000  # steps per forward pass when running a whole split (memory bound, not a result)
+
+
+def split_tensors(db: Database, split: str, device: str | torch.device = "cpu"):
+    """Scaled (sensors (n, 5), motors (n, 2)) float32 tensors of one split."""
+    part = db.take(split)
+    s = torch.from_numpy(scale_sensors(part.sensors, db.max_range)).to(device)
+    m = torch.from_numpy(scale_motors(part.motors)).to(device)
+    return s, m
+
+
+@torch.no_grad()
+def run_model(
+    model: SensorimotorEncoder, sensors: torch.Tensor, motors: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Run over one contiguous sequence: (n, 5), (n, 2) -> prediction (n, 5), z_s (n, 10).
+
+    Recurrent models start from a zero state and carry it over the whole sequence (in chunks,
+    which gives the same numbers as one pass).
+    """
+    was_training = model.training
+    model.eval()
+    preds, zs, state = [], [], None
+    for i in range(0, len(sensors), CHUNK):
+        s = sensors[None, i : i + CHUNK]  # (1, c, 5)
+        m = motors[None, i : i + CHUNK]  # (1, c, 2)
+        p, z, state = model(s, m, state)
+        preds.append(p[0])
+        zs.append(z[0])
+    model.train(was_training)
+    return torch.cat(preds), torch.cat(zs)
+
+
+def prediction_error(pred: torch.Tensor, sensors: torch.Tensor) -> float:
+    """Paper's L2 error of predictions pred[t] of sensors[t + 1]: sum over sensors, mean over t."""
+    return float(((pred[:-1] - sensors[1:]) ** 2).sum(-1).mean())
+
+
+def model_error(model: SensorimotorEncoder, sensors: torch.Tensor, motors: torch.Tensor) -> float:
+    """The error of ``model`` over one contiguous split."""
+    pred, _ = run_model(model, sensors, motors)
+    return prediction_error(pred, sensors)
+
+
+def baselines(db: Database, split: str = "test") -> dict[str, float]:
+    """Errors of predicting the train-split mean reading, and of copying the last reading."""
+    s, _ = split_tensors(db, split)
+    train_s, _ = split_tensors(db, "train")
+    mean = train_s.mean(0, keepdim=True).expand_as(s)
+    return {"mean": prediction_error(mean, s), "copy_last": prediction_error(s, s)}
+
+
+@dataclass(frozen=True)
+class Run:
+    """A trained run folder: its best model and what it says about itself."""
+
+    path: Path
+    model: SensorimotorEncoder
+    config: dict  # config.json: model, train, data, version
+
+    @property
+    def kind(self) -> str:
+        return self.model.config.kind
+
+    @property
+    def trained_on(self) -> str:
+        return self.config["data"]["world"]
+
+
+def load_run(run_dir: str | Path, device: str | torch.device = "cpu") -> Run:
+    """Load a run folder's config and best weights; InputError naming the file if anything is off."""
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        raise InputError(f"{run_dir}: run folder not found")
+    cfg_path, weights = run_dir / "config.json", run_dir / "model.pt"
+    if not cfg_path.is_file():
+        raise InputError(f"{cfg_path}: missing (not a run folder made by `sensorimotor train`)")
+    try:
+        config = json.loads(cfg_path.read_text())
+        model_config = ModelConfig(
+            **{**config["model"], "ff_hidden": tuple(config["model"]["ff_hidden"])}
+        )
+    except (ValueError, KeyError, TypeError) as err:
+        raise InputError(f"{cfg_path}: corrupt run config ({err})") from None
+    if not weights.is_file():
+        raise InputError(f"{weights}: missing checkpoint (training has not finished an epoch)")
+    try:
+        state = torch.load(weights, map_location=device, weights_only=True)
+        model = build_model(model_config).to(device)
+        model.load_state_dict(state)
+    except Exception as err:  # torch raises many kinds on corrupt files
+        msg = str(err).splitlines()[0] if str(err) else err.__class__.__name__
+        raise InputError(f"{weights}: corrupt checkpoint ({msg})") from None
+    model.eval()
+    return Run(run_dir, model, config)
+
+
+def check_fits(run: Run, db: Database) -> None:
+    """Refuse data the run's model cannot read (another sensor layout)."""
+    trained = run.config.get("data", {}).get("sensor_layout")
+    layout = db.meta.get("sensor_layout")
+    if trained and layout and trained != layout:
+        raise InputError(
+            f"{db.path}: sensor layout {layout} does not fit run {run.path} (trained on {trained})"
+        )
+    if db.sensors.shape[1] != run.model.config.n_sensors:
+        raise InputError(
+            f"{db.path}: {db.sensors.shape[1]} sensors, the model reads {run.model.config.n_sensors}"
+        )
+
+
+def representation(run: Run | str | Path, db: Database, split: str = "test") -> np.ndarray:
+    """z_s (n, 10) of a trained model over one split (recurrent: state carried from its start)."""
+    if not isinstance(run, Run):
+        run = load_run(run)
+    check_fits(run, db)
+    s, m = split_tensors(db, split)
+    if len(s) == 0:
+        raise InputError(f"{db.path}: the {split} split is empty")
+    _, z = run_model(run.model, s, m)
+    return z.numpy()
+
+
+def evaluate_run(run: Run, dbs: list[Database], split: str = "test") -> dict:
+    """Errors of one run on each database's split, with the baselines: the JSON of `evaluate`."""
+    errors, base = {}, {}
+    for db in dbs:
+        check_fits(run, db)
+        s, m = split_tensors(db, split)
+        if len(s) < 2:
+            raise InputError(f"{db.path}: the {split} split has fewer than 2 steps")
+        name = db.meta["world"]["name"]
+        errors[name] = model_error(run.model, s, m)
+        base[name] = baselines(db, split)
+    return {
+        "model": run.kind,
+        "run": str(run.path),
+        "trained_on": run.trained_on,
+        "seed": run.config.get("train", {}).get("seed"),
+        "errors": errors,
+        "baselines": base,
+    }
+
+
+def mean_sd(values: list[float]) -> tuple[float, float]:
+    """Mean and sample standard deviation (0 for one value)."""
+    mean = sum(values) / len(values)
+    if len(values) < 2:
+        return mean, 0.0
+    return mean, math.sqrt(sum((v - mean) ** 2 for v in values) / (len(values) - 1))

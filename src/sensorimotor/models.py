@@ -1,0 +1,150 @@
+"""The four encoders of the paper (section III, sizes from section V.A), in one file.
+
+Every model maps sensors s_t (and motors m_t) to a prediction of s_{t+1} through a sensory
+representation z_s (10-d). Shapes: B batch, T time, 5 sensors, 2 motors.
+
+    S-encoder      s_t -> 16 -> 32 -> 64 -> z_s(10)                   -> 128 -> s_{t+1}
+    SM-encoder     s_t -> 16 -> 32 -> 64 -> z_s(10) | m_t -> 16 -> 32 -> 64 -> z_m(5) -> 128 -> s
+    Recurrent-S    s_t -> 16 -> LSTM(3 x 32) -> z_s(10)               -> 128 -> s_{t+1}
+    Recurrent-SM   s_t -> 16 -> LSTM(3 x 32) -> z_s(10) | m_t -> 16 -> z_m(5)   -> 128 -> s
+
+ReLU after every hidden layer; z_s, z_m and the prediction are linear. The same ``forward``
+serves training, evaluation and analysis; analysis reads ``z_s`` and nothing else.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import asdict, dataclass
+
+import torch
+from torch import nn
+
+MODEL_KINDS = ("s", "sm", "rec-s", "rec-sm")
+MODEL_NAMES = {
+    "s": "S-encoder",
+    "sm": "SM-encoder",
+    "rec-s": "Recurrent-S-encoder",
+    "rec-sm": "Recurrent-SM-encoder",
+}
+
+State = tuple[torch.Tensor, torch.Tensor] | None  # LSTM (h, c), each (layers, B, 32); None = zero
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """Sizes of one encoder; the defaults are the paper's."""
+
+    kind: str = "rec-sm"
+    """One of s, sm, rec-s, rec-sm."""
+    n_sensors: int = 5
+    """Distance sensors in s_t."""
+    n_motors: int = 2
+    """Motor command (d, r)."""
+    z_sensors: int = 10
+    """Size of the sensory representation z_s."""
+    z_motors: int = 5
+    """Size of the motor representation z_m."""
+    ff_hidden: tuple[int, ...] = (16, 32, 64)
+    """Hidden layers of the feed-forward encoders (S, SM; sensor and motor)."""
+    rec_hidden: int = 16
+    """The one hidden layer of the recurrent models' sensor and motor encoders."""
+    lstm_size: int = 32
+    """Units of each LSTM layer."""
+    lstm_layers: int = 3
+    """Stacked LSTM layers."""
+    predictor_hidden: int = 128
+    """The prediction subnetwork's one hidden layer."""
+
+    def __post_init__(self) -> None:
+        if self.kind not in MODEL_KINDS:
+            raise ValueError(f"unknown model {self.kind!r}: use one of {', '.join(MODEL_KINDS)}")
+        object.__setattr__(self, "ff_hidden", tuple(self.ff_hidden))
+
+    @property
+    def recurrent(self) -> bool:
+        return self.kind.startswith("rec")
+
+    @property
+    def uses_motors(self) -> bool:
+        return self.kind.endswith("sm")
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["ff_hidden"] = list(self.ff_hidden)
+        return d
+
+
+def mlp(sizes: list[int]) -> nn.Sequential:
+    """Linear layers through ``sizes`` with a ReLU after every one but the last."""
+    layers: list[nn.Module] = []
+    for i, (a, b) in enumerate(itertools.pairwise(sizes)):
+        layers.append(nn.Linear(a, b))
+        if i < len(sizes) - 2:
+            layers.append(nn.ReLU())
+    return nn.Sequential(*layers)
+
+
+class SensorimotorEncoder(nn.Module):
+    """One of the four encoders, chosen by ``config.kind``."""
+
+    def __init__(self, config: ModelConfig):
+        super().__init__()
+        c = config
+        self.config = c
+        if c.recurrent:
+            self.sensor_in = nn.Sequential(nn.Linear(c.n_sensors, c.rec_hidden), nn.ReLU())
+            self.lstm = nn.LSTM(c.rec_hidden, c.lstm_size, c.lstm_layers, batch_first=True)
+            self.sensor_out = nn.Linear(c.lstm_size, c.z_sensors)
+            motor_sizes = [c.n_motors, c.rec_hidden, c.z_motors]
+        else:
+            self.sensor_encoder = mlp([c.n_sensors, *c.ff_hidden, c.z_sensors])
+            motor_sizes = [c.n_motors, *c.ff_hidden, c.z_motors]
+        z_in = c.z_sensors
+        if c.uses_motors:
+            self.motor_encoder = mlp(motor_sizes)
+            z_in += c.z_motors
+        self.predictor = mlp([z_in, c.predictor_hidden, c.n_sensors])
+
+    def encode(self, sensors: torch.Tensor, state: State = None) -> tuple[torch.Tensor, State]:
+        """The sensory representation z_s of every step: (B, T, 5) -> (B, T, 10), new state.
+
+        Feed-forward models treat steps independently and accept any leading shape (..., 5).
+        Recurrent models carry the LSTM state (h, c) through time; ``state=None`` is zero.
+        """
+        if not self.config.recurrent:
+            return self.sensor_encoder(sensors), None  # (..., 10)
+        h = self.sensor_in(sensors)  # (B, T, 16)
+        h, state = self.lstm(h, state)  # (B, T, 32); h, c: (3, B, 32)
+        return self.sensor_out(h), state  # (B, T, 10)
+
+    def forward(
+        self, sensors: torch.Tensor, motors: torch.Tensor | None = None, state: State = None
+    ) -> tuple[torch.Tensor, torch.Tensor, State]:
+        """Predict s_{t+1} from s_t (and m_t): returns (prediction, z_s, state).
+
+        sensors (B, T, 5) scaled readings, motors (B, T, 2) scaled commands (ignored by S models).
+        """
+        z_s, state = self.encode(sensors, state)  # (B, T, 10)
+        z = z_s
+        if self.config.uses_motors:
+            if motors is None:
+                raise ValueError(f"{MODEL_NAMES[self.config.kind]} needs motor commands")
+            z_m = self.motor_encoder(motors)  # (B, T, 5)
+            z = torch.cat([z_s, z_m], dim=-1)  # (B, T, 15)
+        return self.predictor(z), z_s, state  # (B, T, 5), (B, T, 10)
+
+
+def build_model(config: ModelConfig | str, seed: int | None = None) -> SensorimotorEncoder:
+    """A freshly initialised encoder; with ``seed``, the initial weights depend on it alone."""
+    if isinstance(config, str):
+        config = ModelConfig(kind=config)
+    if seed is None:
+        return SensorimotorEncoder(config)
+    with torch.random.fork_rng(devices=[]):
+        torch.manual_seed(seed)
+        return SensorimotorEncoder(config)
+
+
+def count_parameters(model: nn.Module) -> int:
+    return sum(p.numel() for p in model.parameters())

@@ -1,0 +1,62 @@
+"""Table I: test errors of several runs gathered by training world, model and test world."""
+
+from __future__ import annotations
+
+from sensorimotor.data import Database
+from sensorimotor.evaluate import Run, baselines, evaluate_run, mean_sd
+from sensorimotor.models import MODEL_KINDS, MODEL_NAMES
+
+# The paper's Table I: models trained on Square, tested on each world (sum over sensors).
+PAPER_TABLE_I = {
+    "s": {"square": 0.03735, "rooms1": 0.04299, "rooms2": 0.07290},
+    "sm": {"square": 0.005576, "rooms1": 0.01453, "rooms2": 0.02572},
+    "rec-s": {"square": 0.03587, "rooms1": 0.04068, "rooms2": 0.06971},
+    "rec-sm": {"square": 0.002404, "rooms1": 0.01054, "rooms2": 0.01809},
+}
+
+
+def paper_ordering_holds(cells: dict[str, float]) -> bool | None:
+    """The paper's claim in one column: Rec-SM < SM < both Rec-S and S (None if a cell is missing)."""
+    if any(k not in cells for k in MODEL_KINDS):
+        return None
+    return cells["rec-sm"] < cells["sm"] < min(cells["rec-s"], cells["s"])
+
+
+def build_table(runs: list[Run], dbs: list[Database], split: str = "test") -> dict:
+    """Evaluate every run on every database: JSON-ready tables, one per training world."""
+    worlds = [db.meta["world"]["name"] for db in dbs]
+    per_run = [evaluate_run(run, dbs, split) for run in runs]
+    base = {db.meta["world"]["name"]: baselines(db, split) for db in dbs}
+    tables: dict[str, list[dict]] = {}
+    ordering: dict[str, dict[str, bool | None]] = {}
+    for trained_on in dict.fromkeys(r["trained_on"] for r in per_run):
+        rows = []
+        for kind in MODEL_KINDS:
+            mine = [r for r in per_run if r["trained_on"] == trained_on and r["model"] == kind]
+            if not mine:
+                continue
+            cells = {}
+            for w in worlds:
+                values = [r["errors"][w] for r in mine]
+                mean, sd = mean_sd(values)
+                cells[w] = {
+                    "mean": mean,
+                    "sd": sd,
+                    "n": len(values),
+                    "values": values,
+                    "seeds": [r["seed"] for r in mine],
+                }
+            rows.append({"model": kind, "name": MODEL_NAMES[kind], "cells": cells})
+        tables[trained_on] = rows
+        ordering[trained_on] = {
+            w: paper_ordering_holds({row["model"]: row["cells"][w]["mean"] for row in rows})
+            for w in worlds
+        }
+    return {
+        "worlds": worlds,
+        "tables": tables,
+        "baselines": base,
+        "paper_ordering_holds": ordering,
+        "paper": PAPER_TABLE_I,
+        "runs": per_run,
+    }
