@@ -20,7 +20,7 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
-err_console = Console(stderr=True)
+err_console = Console(stderr=True, soft_wrap=True)
 
 WorldArg = Annotated[
     str, typer.Argument(help="World: square, rooms1, rooms2, or the path of a .toml world file.")
@@ -51,7 +51,7 @@ def generate(
     noise: Annotated[float, typer.Option(help="Std of Gaussian noise added to readings.")] = 0.0,
 ) -> None:
     """Record a database of the paper's random wall-avoiding behaviour in WORLD."""
-    from sensorimotor.data import check_writable, save_database
+    from sensorimotor.data import check_memory, check_writable, save_database
     from sensorimotor.data import generate as generate_db
     from sensorimotor.world import load_world
 
@@ -62,6 +62,7 @@ def generate(
     w = load_world(world)
     out = out or Path(f"{w.name}_s{seed}.npz")
     check_writable(out)
+    check_memory(steps)
     with progress_bar(f"generate {w.name}", steps) as bar:
         task = bar.add_task(f"generate {w.name}", total=steps)
         db = generate_db(
@@ -69,6 +70,279 @@ def generate(
         )
     save_database(db, out)
     err_console.print(f"wrote {out} ({steps:,} steps of {w.name}, seed {seed})")
+
+
+plot_app = typer.Typer(
+    help="Draw the paper's simulator figures as PNG: world (Fig. 1), trajectory (Fig. 2), "
+    "perception (Fig. 3).",
+    no_args_is_help=True,
+)
+app.add_typer(plot_app, name="plot")
+PlotOut = Annotated[Path, typer.Option(help="Output .png (written atomically).")]
+PlotSvg = Annotated[bool, typer.Option(help="Also write an .svg beside the .png.")]
+
+
+ModelArg = Annotated[str, typer.Argument(help="Model: s, sm, rec-s or rec-sm.")]
+
+
+def _check_model(model: str) -> str:
+    from sensorimotor.models import MODEL_KINDS
+
+    if model not in MODEL_KINDS:
+        raise InputError(f"unknown model {model!r}: use one of {', '.join(MODEL_KINDS)}")
+    return model
+
+
+@app.command()
+def train(
+    model: ModelArg,
+    data: Annotated[Path, typer.Option(help="Database (.npz) from `sensorimotor generate`.")],
+    out: Annotated[Path, typer.Option(help="Run folder to write (weights, config, history).")],
+    seed: Annotated[int, typer.Option(help="Seed of the initial weights and data order.")] = 0,
+    max_epochs: Annotated[int | None, typer.Option(help="Cap on epochs.")] = None,
+    max_minutes: Annotated[float | None, typer.Option(help="Cap on training minutes.")] = None,
+    device: Annotated[str, typer.Option(help="auto, cpu or cuda.")] = "cpu",
+    resume: Annotated[bool, typer.Option(help="Continue the run in --out from its last epoch.")] = False,
+) -> None:
+    """Train one encoder by predicting the next reading (Adam, batch 64, early stopping)."""
+    from sensorimotor.models import MODEL_NAMES
+    from sensorimotor.train import TrainConfig
+    from sensorimotor.train import train as train_run
+
+    _check_model(model)
+    if max_epochs is not None and max_epochs < 1:
+        raise InputError(f"--max-epochs must be at least 1, got {max_epochs}")
+    if max_minutes is not None and not max_minutes > 0:
+        raise InputError(f"--max-minutes must be positive, got {max_minutes}")
+    config = TrainConfig(model=model, seed=seed, max_epochs=max_epochs, max_minutes=max_minutes, device=device)
+
+    def on_epoch(r, stopper) -> None:
+        left = ""
+        if max_minutes is not None:
+            left = f"  {max(0.0, 60 * max_minutes - r.elapsed) / 60:.1f} min left under the cap"
+        if not started:  # the header waits for the first epoch: input errors stay one line
+            started.append(True)
+            err_console.print(f"training {MODEL_NAMES[model]} on {data} (seed {seed}) -> {out}")
+        mark = "*" if r.improved else " "
+        err_console.print(
+            f"epoch {r.epoch:3d}{mark} train {r.train_error:.5f}  val {r.val_error:.5f}  "
+            f"best {stopper.lowest:.5f} (epoch {stopper.best_epoch})  "
+            f"{r.samples_per_s / 1e3:,.0f} k samples/s  {r.seconds:.1f} s  "
+            f"patience {stopper.patience - stopper.waited}{left}"
+        )
+
+    started: list[bool] = []
+    result = train_run(data, out, config, resume=resume, on_epoch=on_epoch)
+    err_console.print(
+        f"done: {result.stopped} after {result.epochs} epochs, best validation error "
+        f"{result.best_val_error:.6f} at epoch {result.best_epoch} ({result.seconds:.0f} s)"
+    )
+
+
+@app.command()
+def evaluate(
+    run_dir: Annotated[Path, typer.Argument(help="Run folder from `sensorimotor train`.")],
+    data: Annotated[list[Path], typer.Option(help="Databases to test on (repeatable).")],
+    json_out: Annotated[Path | None, typer.Option("--json", help="Also write the results as JSON.")] = None,
+) -> None:
+    """Test-split prediction error of a trained model on one or more databases, with baselines."""
+    import json
+
+    from rich.table import Table
+
+    from sensorimotor.data import atomic_path, check_writable, load_database
+    from sensorimotor.evaluate import evaluate_run, load_run
+    from sensorimotor.models import MODEL_NAMES
+
+    if json_out is not None:
+        check_writable(json_out)
+    run = load_run(run_dir)
+    dbs = [load_database(p) for p in data]
+    res = evaluate_run(run, dbs)
+    table = Table(title=f"{MODEL_NAMES[run.kind]} trained on {run.trained_on}: test error (sum over sensors)")
+    for col in ("test world", "model", "mean baseline", "copy-last baseline"):
+        table.add_column(col, justify="right")
+    for world, err in res["errors"].items():
+        b = res["baselines"][world]
+        table.add_row(world, f"{err:.5f}", f"{b['mean']:.5f}", f"{b['copy_last']:.5f}")
+    Console().print(table)
+    if json_out is not None:
+        with atomic_path(json_out) as tmp:
+            tmp.write_text(json.dumps(res, indent=2))
+
+
+@app.command()
+def table(
+    run_dirs: Annotated[list[Path], typer.Argument(help="Run folders (several seeds allowed).")],
+    data: Annotated[list[Path], typer.Option(help="Test databases, one per world (repeatable).")],
+    json_out: Annotated[Path | None, typer.Option("--json", help="Also write the table as JSON.")] = None,
+) -> None:
+    """Table I: rows = models, columns = test worlds, mean +- sd over seeds, the paper beside."""
+    import json
+
+    from rich.table import Table
+
+    from sensorimotor.data import atomic_path, check_writable, load_database
+    from sensorimotor.evaluate import load_run
+    from sensorimotor.tables import PAPER_TABLE_I, build_table
+
+    if json_out is not None:
+        check_writable(json_out)
+    runs = [load_run(r) for r in run_dirs]
+    dbs = [load_database(p) for p in data]
+    result = build_table(runs, dbs)
+    for trained_on, rows in result["tables"].items():
+        worlds = result["worlds"]
+        t = Table(title=f"Table I: test error of models trained on {trained_on} (mean ± sd over seeds)")
+        t.add_column("model")
+        for w in worlds:
+            t.add_column(w, justify="right")
+            if trained_on == "square" and w in PAPER_TABLE_I["s"]:
+                t.add_column(f"{w} (paper)", justify="right", style="dim")
+        for row in rows:
+            cells = [row["name"]]
+            for w in worlds:
+                c = row["cells"].get(w)
+                cells.append("" if c is None else f"{c['mean']:.5f} ± {c['sd']:.5f} (n={c['n']})")
+                if trained_on == "square" and w in PAPER_TABLE_I["s"]:
+                    p = PAPER_TABLE_I.get(row["model"], {}).get(w)
+                    cells.append("" if p is None else f"{p:.5f}")
+            t.add_row(*cells)
+        for name in ("mean", "copy_last"):
+            t.add_row(f"[dim]baseline: {name}", *[
+                x for w in worlds for x in (
+                    [f"[dim]{result['baselines'][w][name]:.5f}"]
+                    + (["" ] if trained_on == "square" and w in PAPER_TABLE_I["s"] else [])
+                )
+            ])
+        Console().print(t)
+    if json_out is not None:
+        with atomic_path(json_out) as tmp:
+            tmp.write_text(json.dumps(result, indent=2))
+
+
+def _save_plot(fig, out: Path, svg: bool) -> None:
+    from sensorimotor.plots import save_figure
+
+    for path in save_figure(fig, out, svg=svg):
+        err_console.print(f"wrote {path}")
+
+
+def _check_png(out: Path) -> Path:
+    from sensorimotor.data import check_writable
+
+    if out.suffix.lower() != ".png":
+        raise InputError(f"{out}: --out must be a .png file")
+    return check_writable(out)
+
+
+@plot_app.command("world")
+def plot_world_cmd(
+    worlds: Annotated[
+        list[str],
+        typer.Argument(help="Worlds, side by side: square, rooms1, rooms2, or .toml paths."),
+    ],
+    out: PlotOut = Path("worlds.png"),
+    svg: PlotSvg = False,
+) -> None:
+    """Fig. 1: the walls of each WORLD, side by side."""
+    from sensorimotor.plots import worlds_figure
+    from sensorimotor.world import load_world
+
+    _check_png(out)
+    _save_plot(worlds_figure([load_world(w) for w in worlds]), out, svg)
+
+
+@plot_app.command("trajectory")
+def plot_trajectory_cmd(
+    data: Annotated[
+        list[Path], typer.Option(help="Database (.npz); repeat for panels side by side.")
+    ],
+    steps: Annotated[int, typer.Option(help="Steps drawn from the start of each.")] = 10_000,
+    out: PlotOut = Path("trajectories.png"),
+    svg: PlotSvg = False,
+) -> None:
+    """Fig. 2: the agent's path over the first STEPS rows of each database, in its world."""
+    from sensorimotor.data import load_database
+    from sensorimotor.plots import trajectories_figure
+
+    if steps < 1:
+        raise InputError(f"--steps must be at least 1, got {steps}")
+    _check_png(out)
+    _save_plot(trajectories_figure([load_database(p) for p in data], steps), out, svg)
+
+
+@plot_app.command("perception")
+def plot_perception_cmd(
+    data: Annotated[Path, typer.Option(help="Database (.npz) to take the situations from.")],
+    row: Annotated[
+        list[int] | None,
+        typer.Option(help="Draw these rows instead of the five situations; repeatable."),
+    ] = None,
+    view: Annotated[
+        float, typer.Option(help="Half-width of the window around the agent (units); 0: all.")
+    ] = 7.5,
+    out: PlotOut = Path("perception.png"),
+    svg: PlotSvg = False,
+) -> None:
+    """Fig. 3: what the agent perceives (5 red dots) in the paper's five situations.
+
+    The situations (nothing, line, corner, wall at its left, wall end) are found in the
+    database by pose and readings; a wall end needs a world with inner walls (rooms1).
+    """
+    from sensorimotor.data import load_database
+    from sensorimotor.plots import perception_figure, pick_situations
+
+    if not view >= 0:
+        raise InputError(f"--view must be a non-negative number, got {view}")
+    _check_png(out)
+    db = load_database(data)
+    if row:
+        bad = [r for r in row if not 0 <= r < len(db)]
+        if bad:
+            raise InputError(f"{data}: row {bad[0]} is outside the database (0..{len(db) - 1})")
+        situations = {f"row {r}": r for r in row}
+    else:
+        situations = pick_situations(db)
+        if not situations:
+            raise InputError(f"{data}: none of the paper's five situations occurs in it")
+    _save_plot(perception_figure(db, situations, view=view or None), out, svg)
+
+
+@app.command()
+def analyze(
+    run: Annotated[
+        str,
+        typer.Argument(
+            help="A run folder made by `sensorimotor train`, or `raw` for the 5 readings / 10."
+        ),
+    ],
+    data: Annotated[Path, typer.Option(help="Database whose test split is analysed (.npz).")],
+    out: Annotated[Path, typer.Option(help="Output folder for the figures and metrics.json.")],
+    fit_data: Annotated[
+        Path | None,
+        typer.Option(
+            help="Fit PCA and k-means on this database's test split and apply them to --data "
+            "(transfer)."
+        ),
+    ] = None,
+    seed: Annotated[int, typer.Option(help="Seed of k-means, the probes and the drawings.")] = 0,
+) -> None:
+    """Cluster a representation of a test split (k-means, k = 20), score it against the
+    ground-truth events, draw its PCA and clusters, and write metrics.json."""
+    from sensorimotor.analysis import analyze_files, summary_lines
+
+    with err_console.status(f"analysing {run} on {data}"):
+        result = analyze_files(run, data, out, fit_data, seed)
+    m = result.metrics
+    if m["fit_analysis"] is not None:
+        print(f"{m['model']}, fitted on {m['fit_data']}:")
+        print("\n".join(summary_lines(m["fit_analysis"])))
+        print(f"{m['model']}, transferred to {m['data']}:")
+    else:
+        print(f"{m['model']} on {m['data']}:")
+    print("\n".join(summary_lines(m["analysis"])))
+    err_console.print("wrote " + ", ".join(str(p) for p in result.files), soft_wrap=True)
 
 
 def version_callback(value: bool) -> None:

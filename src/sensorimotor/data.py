@@ -108,12 +108,32 @@ def generate(
     )
 
 
+def check_memory(steps: int, bytes_per_step: int = 120) -> None:
+    """Refuse early a database too big for this machine's memory (InputError, not a traceback).
+
+    ``generate`` holds the float64 rollout (10 numbers, 80 bytes a step) and its float32 copy
+    (40 bytes a step) at once.
+    """
+    try:
+        have = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):  # no sysconf (Windows): let numpy decide
+        return
+    need = steps * bytes_per_step
+    if need > have:
+        raise InputError(
+            f"--steps {steps:,} needs about {need / 2**30:,.1f} GiB of memory; "
+            f"this machine has {have / 2**30:,.1f} GiB"
+        )
+
+
 def check_writable(path: str | Path) -> Path:
     """Refuse early an output path whose folder is missing or cannot be written."""
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
     if path.is_dir():
         raise InputError(f"{path}: is a folder, not a file path")
+    if folder.exists() and not folder.is_dir():
+        raise InputError(f"{path}: {folder} is a file, not a folder")
     if not folder.is_dir():
         raise InputError(f"{path}: folder {folder} does not exist")
     if not os.access(folder, os.W_OK | os.X_OK):
@@ -134,6 +154,9 @@ def atomic_path(path: Path, suffix: str = ""):
         raise InputError(f"{path}: cannot write in {folder} ({err.strerror})") from None
     os.close(fd)
     try:
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the usual permissions
         yield Path(tmp)
         os.replace(tmp, path)
     finally:
@@ -163,7 +186,11 @@ def load_database(path: str | Path) -> Database:
     if path.is_dir():
         raise InputError(f"{path}: is a folder, not a database (.npz)")
     try:
-        with np.load(path, allow_pickle=False) as npz:
+        # our own file handle: np.load leaks its own when a damaged zip makes it raise
+        with open(path, "rb") as f:
+            npz = np.load(f, allow_pickle=False)
+            if not isinstance(npz, np.lib.npyio.NpzFile):  # a bare .npy array
+                raise InputError(f"{path}: not an .npz file (a single .npy array)")
             missing = [k for k in (*ARRAYS, "meta") if k not in npz.files]
             if missing:
                 raise InputError(f"{path}: not a sensorimotor database (missing {missing[0]!r})")

@@ -39,43 +39,63 @@ class SensorLayout:
 DEFAULT_LAYOUT = SensorLayout()
 
 
-@numba.njit(cache=True, fastmath=False)
-def _cast(segments, x, y, dx, dy, max_range):
-    """Distance from (x, y) along unit direction (dx, dy) to the first segment, capped."""
-    best = max_range
+@numba.njit(cache=True, error_model="numpy")
+def _cast_many(segments, x, y, dx, dy, max_range, out):
+    """Write into ``out`` (R,) the distance from (x, y) along each unit direction (dx[i], dy[i])
+    to the first segment, capped at ``max_range``: the ray caster of the whole package.
+
+    A ray ``p + t u`` (t >= 0, |u| = 1) meets segment ``a + s e`` (0 <= s <= 1, e = b - a)
+    where ``p + t u = a + s e``. Crossing both sides with ``e`` and with ``u`` (``c(v, w) =
+    v_x w_y - v_y w_x``) gives ``t = c(a - p, e) / c(u, e)`` and ``s = c(a - p, u) / c(u, e)``.
+    With the sign of ``den = c(u, e)`` moved onto the numerators (exact), the tests need no
+    division: a hit is ``|den| >= EPS`` (parallel rays never hit), ``t_num >= 0`` and
+    ``0 <= s_num <= |den|`` (end points count); then ``t = t_num / |den|``. ``t_num`` does not
+    depend on the ray, so the loop runs over segments outside, rays inside, and the ray loop is
+    branch-free (``error_model="numpy"``: a division by a zero ``den`` is masked, not raised).
+
+    segments: (S, 4) float64 ``x0, y0, x1, y1``; dx, dy, out: (R,) float64.
+    """
+    for i in range(out.shape[0]):
+        out[i] = max_range
     for k in range(segments.shape[0]):
         ax = segments[k, 0]
         ay = segments[k, 1]
         ex = segments[k, 2] - ax
         ey = segments[k, 3] - ay
-        denom = dx * ey - dy * ex
-        if abs(denom) < EPS:  # parallel: a point agent never sees a wall edge-on
-            continue
         qx = ax - x
         qy = ay - y
-        t = (qx * ey - qy * ex) / denom
-        s = (qx * dy - qy * dx) / denom
-        if t >= 0.0 and 0.0 <= s <= 1.0 and t < best:
-            best = t
-    return best
+        t_num = qx * ey - qy * ex  # c(a - p, e), shared by every ray
+        for i in range(out.shape[0]):
+            den = dx[i] * ey - dy[i] * ex  # c(u, e)
+            s_num = qx * dy[i] - qy * dx[i]  # c(a - p, u)
+            neg = den < 0.0
+            den = -den if neg else den
+            tn = -t_num if neg else t_num
+            sn = -s_num if neg else s_num
+            t = tn / den
+            hit = (den >= EPS) & (tn >= 0.0) & (sn >= 0.0) & (sn <= den) & (t < out[i])
+            out[i] = t if hit else out[i]
+    return out
 
 
 @numba.njit(cache=True)
 def cast_rays(segments, x, y, heading, angles, max_range, out):
     """Write into ``out`` (R,) the distance along each ray ``heading + angles[i]`` to a wall.
 
-    A ray ``p + t u`` (t >= 0, |u| = 1) meets segment ``a + s e`` (0 <= s <= 1, e = b - a) where
-    ``p + t u = a + s e``. Crossing both sides with ``e`` and with ``u`` (``c(v, w) = v_x w_y -
-    v_y w_x``) gives ``t = c(a - p, e) / c(u, e)`` and ``s = c(a - p, u) / c(u, e)``. Parallel
-    rays (``c(u, e) = 0``) never hit; end points count (``s`` in the closed interval). The
-    reading is the smallest ``t``, or ``max_range`` when no wall is nearer.
+    The reading is the smallest ``t`` at which the ray meets a segment (derived in
+    ``_cast_many``; end points count, parallel rays never hit), or ``max_range`` when no wall is
+    nearer.
 
     segments: (S, 4) float64 ``x0, y0, x1, y1``; angles: (R,) float64; out: (R,) float64.
     """
-    for i in range(angles.shape[0]):
+    n = angles.shape[0]
+    dx = np.empty(n)
+    dy = np.empty(n)
+    for i in range(n):
         a = heading + angles[i]
-        out[i] = _cast(segments, x, y, math.cos(a), math.sin(a), max_range)
-    return out
+        dx[i] = math.cos(a)
+        dy[i] = math.sin(a)
+    return _cast_many(segments, x, y, dx, dy, max_range, out)
 
 
 @numba.njit(cache=True)
@@ -112,31 +132,46 @@ def _rollout(segments, angles, max_range, x, y, heading, uniforms, noise, sensor
 
     Row t: ``poses[t]`` is where ``sensors[t]`` is read; ``motors[t]`` is chosen from it and
     leads to row t + 1. The behaviour sees the noiseless readings (a reflex the noise does not
-    fool, so the agent never crosses a wall); ``noise[t]`` (T, R) is added to what is recorded.
-    Returns the pose after the last step.
+    fool, so the agent never crosses a wall); ``noise[t]`` (T, R) is added to what is recorded,
+    and an empty ``noise`` (0, R) means none. Returns the pose after the last step.
     """
     n_rays = angles.shape[0]
     ca = np.cos(angles)
     sa = np.sin(angles)
+    dx = np.empty(n_rays)
+    dy = np.empty(n_rays)
+    readings = np.empty(n_rays)
+    noisy_run = noise.shape[0] > 0
     for t in range(uniforms.shape[0]):
         poses[t, 0] = x
         poses[t, 1] = y
         poses[t, 2] = heading
         ch = math.cos(heading)
         sh = math.sin(heading)
-        lowest = max_range
         for i in range(n_rays):
             # direction of heading + angle[i], by the angle-sum identities (one sincos a step)
-            reading = _cast(
-                segments, x, y, ch * ca[i] - sh * sa[i], sh * ca[i] + ch * sa[i], max_range
-            )
-            lowest = min(lowest, reading)
-            sensors[t, i] = min(max(reading + noise[t, i], 0.0), max_range)
+            dx[i] = ch * ca[i] - sh * sa[i]
+            dy[i] = sh * ca[i] + ch * sa[i]
+        _cast_many(segments, x, y, dx, dy, max_range, readings)
+        lowest = max_range
+        for i in range(n_rays):
+            lowest = min(lowest, readings[i])
+            noisy = readings[i] + noise[t, i] if noisy_run else readings[i]
+            sensors[t, i] = min(max(noisy, 0.0), max_range)
         d, r = behaviour(lowest, uniforms[t, 0], uniforms[t, 1])
         motors[t, 0] = d
         motors[t, 1] = r
-        x, y, heading = apply_motor(x, y, heading, d, r)
+        # apply_motor(x, y, heading, d, r), reusing this step's cos and sin of the heading
+        x = x + d * ch
+        y = y + d * sh
+        heading = wrap_angle(heading + r)
     return x, y, heading
+
+
+def _heading(rng: np.random.Generator) -> float:
+    """A heading uniform over (-pi, pi] (``uniform`` draws [-pi, pi); -pi is the same as pi)."""
+    h = float(rng.uniform(-math.pi, math.pi))
+    return math.pi if h == -math.pi else h
 
 
 def sample_start(world: World, rng: np.random.Generator) -> tuple[float, float, float]:
@@ -145,10 +180,10 @@ def sample_start(world: World, rng: np.random.Generator) -> tuple[float, float, 
     for _ in range(10_000):
         x, y = rng.uniform(0, world.width), rng.uniform(0, world.height)
         if point_segment_distance(segments, np.array([x]), np.array([y])).min() >= START_CLEARANCE:
-            return x, y, float(rng.uniform(-math.pi, math.pi))
+            return x, y, _heading(rng)
     cells = free_start_cells(world)  # a sliver of free space: pick a free grid cell
     x, y = cells[rng.integers(len(cells))]
-    return float(x), float(y), float(rng.uniform(-math.pi, math.pi))
+    return float(x), float(y), _heading(rng)
 
 
 @dataclass(frozen=True)
@@ -171,8 +206,10 @@ def rollout(
 ) -> Rollout:
     """Run the paper's behaviour for ``steps`` steps from a random start; float64 arrays.
 
-    The generator draws the start pose, then per chunk two uniforms per step (and, with noise,
-    a normal per ray and step), so the bytes depend on the seed alone, not on ``chunk``.
+    The generator draws the start pose, then two uniforms per step, chunk after chunk; the
+    noise (a normal per ray and step) comes from a child generator spawned from it, so its
+    draws never interleave with the uniforms: the bytes depend on the seed alone, not on
+    ``chunk``.
     ``progress(n)`` is called after each chunk with the number of steps done.
     """
     if steps < 1:
@@ -184,11 +221,16 @@ def rollout(
     motors = np.empty((steps, 2))
     poses = np.empty((steps, 3))
     x, y, heading = sample_start(world, rng)
-    zeros = np.zeros((min(chunk, steps), len(angles)))
+    noise_rng = rng.spawn(1)[0] if noise_std else None
+    no_noise = np.zeros((0, len(angles)))
     for start in range(0, steps, chunk):
         stop = min(start + chunk, steps)
         uniforms = rng.random((stop - start, 2))
-        noise = rng.normal(0.0, noise_std, (stop - start, len(angles))) if noise_std else zeros
+        noise = (
+            noise_rng.normal(0.0, noise_std, (stop - start, len(angles)))
+            if noise_rng is not None
+            else no_noise
+        )
         x, y, heading = _rollout(
             segments,
             angles,
@@ -225,4 +267,33 @@ def _read_many(segments, poses, angles, max_range):
     out = np.empty((poses.shape[0], angles.shape[0]))
     for p in range(poses.shape[0]):
         cast_rays(segments, poses[p, 0], poses[p, 1], poses[p, 2], angles, max_range, out[p])
+    return out
+
+
+def hit_walls(
+    world: World,
+    poses: np.ndarray,
+    layout: SensorLayout = DEFAULT_LAYOUT,
+    chunk: int = 65_536,
+) -> np.ndarray:
+    """(P, R) int: the row of ``world.segments`` each ray hits, or -1 when it reads the range.
+
+    No second ray caster: ``read_sensors`` gives the distance ``t`` along each ray, the hit point
+    is ``p + t u``, and the wall hit is the segment nearest to that point (it lies on it up to
+    rounding; at a point two walls share, such as a corner, the lower row wins).
+    poses: (P, 3) ``x, y, heading``; worked in chunks of ``chunk`` poses to bound memory.
+    """
+    poses = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
+    angles = np.asarray(layout.angles, dtype=np.float64)
+    segments = world.segments
+    out = np.full((len(poses), len(angles)), -1, dtype=np.int64)
+    for start in range(0, len(poses), chunk):
+        p = poses[start : start + chunk]  # (C, 3)
+        t = read_sensors(world, p, layout)  # (C, R)
+        a = p[:, 2, None] + angles[None, :]  # (C, R) absolute ray directions
+        hx = p[:, 0, None] + t * np.cos(a)  # (C, R) hit points
+        hy = p[:, 1, None] + t * np.sin(a)
+        nearest = point_segment_distance(segments, hx.ravel(), hy.ravel()).argmin(axis=1)
+        nearest = nearest.reshape(t.shape)  # (C, R)
+        out[start : start + chunk] = np.where(t < layout.max_range, nearest, -1)
     return out

@@ -333,6 +333,10 @@ def train(
             a, b = old.get(key, {}), meta[key]
             if key == "data":
                 a, b = a.get("sha256"), b["sha256"]
+            if key == "train":  # the caps may change between sessions; the algorithm may not
+                caps = ("max_epochs", "max_minutes")
+                a = {k: v for k, v in a.items() if k not in caps}
+                b = {k: v for k, v in b.items() if k not in caps}
             if a != b:
                 raise InputError(
                     f"{out}: --resume with a different {key} than the run was started with"
@@ -363,15 +367,16 @@ def train(
         result_path = out / "result.json"
         if result_path.exists():
             res = json.loads(result_path.read_text())
-            return TrainResult(
-                out,
-                res["best_epoch"],
-                res["best_val_error"],
-                res["epochs"],
-                res["stopped"],
-                res["seconds"],
-                history,
-            )
+            if res["stopped"] == "early stopping":  # finished for good; a cap may be lifted
+                return TrainResult(
+                    out,
+                    res["best_epoch"],
+                    res["best_val_error"],
+                    res["epochs"],
+                    res["stopped"],
+                    res["seconds"],
+                    history,
+                )
 
     s, m = split_tensors(db, "train", device)
     vs, vm = split_tensors(db, "val", device)

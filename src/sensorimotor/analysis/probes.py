@@ -1,0 +1,133 @@
+"""Linear probes and KNN-MSE: what a representation knows of the distance behind and the pose.
+
+Probes are ridge regressions on standardised features, fitted on a random half of the steps
+(fixed seed) and scored (R^2) on the other half.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from sklearn.linear_model import Ridge
+from sklearn.metrics import r2_score
+from sklearn.neighbors import NearestNeighbors
+from sklearn.pipeline import make_pipeline
+from sklearn.preprocessing import StandardScaler
+
+from sensorimotor.analysis.clusters import check_z, cluster_event_table
+
+KNN_K = 5  # neighbours in KNN-MSE
+KNN_MAX_POINTS = 20_000  # KNN-MSE on a fixed random subsample above this many steps
+RIDGE_ALPHA = 1.0  # ridge penalty of the probes, on standardised features
+MOSTLY = 0.5  # a cluster is "mostly nothing in view" above this share
+
+
+def _halves(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    order = np.random.default_rng(seed).permutation(n)
+    return order[: n // 2], order[n // 2 :]
+
+
+def probe_r2(z: np.ndarray, target: np.ndarray, seed: int = 0, alpha: float = RIDGE_ALPHA) -> float:
+    """R^2 on a held-out half of a linear (ridge) probe from ``z`` to ``target``.
+
+    The steps are split at random (``seed``) into a fitting half and a scoring half; features are
+    standardised on the fitting half. 1 means the target is a linear function of ``z``; a
+    representation that knows nothing of it scores about 0 (below 0 when the probe overfits).
+    NaN with fewer than 4 steps.
+    """
+    z = check_z(z)
+    target = np.asarray(target, dtype=np.float64)
+    if len(target) != len(z):
+        raise ValueError(f"target has {len(target)} rows, representation {len(z)}")
+    if len(z) < 4:
+        return float("nan")
+    fit, score = _halves(len(z), seed)
+    probe = make_pipeline(StandardScaler(), Ridge(alpha=alpha)).fit(z[fit], target[fit])
+    return float(r2_score(target[score], probe.predict(z[score])))
+
+
+def _subsample(n: int, m: int, seed: int) -> np.ndarray:
+    """Sorted indices of a fixed random subset of ``min(n, m)`` of ``range(n)``."""
+    if n <= m:
+        return np.arange(n)
+    return np.sort(np.random.default_rng(seed).choice(n, m, replace=False))
+
+
+def knn_mse(
+    z: np.ndarray,
+    positions: np.ndarray,
+    world_size: tuple[float, float],
+    k: int = KNN_K,
+    max_points: int = KNN_MAX_POINTS,
+    seed: int = 0,
+) -> dict:
+    """KNN-MSE (Lesort et al. 2017, state representation learning): are neighbours in ``z`` close
+    in the world?
+
+    With positions normalised by the world size, ``q_i = (x_i / width, y_i / height)`` in
+    ``[0, 1]^2``, and ``N_k(i)`` the k nearest neighbours of step i in representation space
+    (Euclidean, the step itself excluded)::
+
+        KNN-MSE = mean_i  (1 / k) sum_{j in N_k(i)} |q_i - q_j|^2
+
+    0 means representation neighbours share a place; neighbours drawn at random score
+    ``chance`` (the same mean over random pairs; about 1/3 for uniform occupancy). Above
+    ``max_points`` steps a fixed random subsample (``seed``) is used for both; ties in ``z``
+    (e.g. many identical "nothing in view" readings) are broken by the search order.
+    """
+    z = check_z(z)
+    q = np.asarray(positions, dtype=np.float64)[:, :2] / np.asarray(world_size, dtype=np.float64)
+    idx = _subsample(len(z), max_points, seed)
+    z, q = z[idx], q[idx]
+    if len(z) <= k:
+        return {"knn_mse": float("nan"), "chance": float("nan"), "points": len(z), "k": k}
+    nn = NearestNeighbors(n_neighbors=k).fit(z)
+    neighbours = nn.kneighbors(return_distance=False)  # (M, k); no query point is its own
+    err = ((q[:, None, :] - q[neighbours]) ** 2).sum(axis=2).mean()
+    partner = np.random.default_rng(seed + 1).permutation(len(q))
+    chance = ((q - q[partner]) ** 2).sum(axis=1).mean()
+    return {"knn_mse": float(err), "chance": float(chance), "points": len(z), "k": k}
+
+
+def position_scores(
+    z: np.ndarray, poses: np.ndarray, seed: int = 0, world_size: tuple[float, float] = (50, 50)
+) -> dict:
+    """Ridge-probe R^2 for x, y, cos(heading), sin(heading), and KNN-MSE (see ``knn_mse``)."""
+    z = check_z(z, len(poses))
+    poses = np.asarray(poses, dtype=np.float64)
+    targets = {
+        "x": poses[:, 0],
+        "y": poses[:, 1],
+        "cos_heading": np.cos(poses[:, 2]),
+        "sin_heading": np.sin(poses[:, 2]),
+    }
+    out = {f"r2_{name}": probe_r2(z, t, seed) for name, t in targets.items()}
+    knn = knn_mse(z, poses, world_size, seed=seed)
+    out.update(
+        knn_mse=knn["knn_mse"],
+        knn_mse_chance=knn["chance"],
+        knn_points=knn["points"],
+        knn_k=knn["k"],
+    )
+    return out
+
+
+def memory_scores(
+    z: np.ndarray,
+    labels: np.ndarray,
+    nothing: np.ndarray,
+    behind: np.ndarray,
+    seed: int = 0,
+    k: int | None = None,
+) -> dict:
+    """Memory while nothing is in view: R^2 of the distance behind, and "nothing" clusters."""
+    nothing = np.asarray(nothing, dtype=bool)
+    table = cluster_event_table(labels, nothing, k)
+    mostly = np.flatnonzero((table["precision"] > MOSTLY) & (table["size"] > 0))
+    r2 = probe_r2(check_z(z)[nothing], np.asarray(behind)[nothing], seed) if nothing.any() else None
+    return {
+        "n_nothing": int(nothing.sum()),
+        "distance_behind_r2": None if r2 is None or np.isnan(r2) else r2,
+        "distance_behind_mean": float(np.mean(behind[nothing])) if nothing.any() else None,
+        "nothing_clusters": len(mostly),
+        "nothing_cluster_ids": mostly.tolist(),
+    }

@@ -1,0 +1,146 @@
+"""The whole analysis of one representation: events, clusters, probes, one JSON-ready dict."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from sklearn.cluster import KMeans
+from sklearn.decomposition import PCA
+
+from sensorimotor import events as ev
+from sensorimotor.analysis.clusters import (
+    N_CLUSTERS,
+    assign_clusters,
+    check_z,
+    cluster_event_table,
+    event_scores,
+    fit_kmeans,
+    fit_pca,
+    project_2d,
+)
+from sensorimotor.analysis.probes import memory_scores, position_scores
+from sensorimotor.world import World
+
+
+def raw_representation(sensors: np.ndarray, max_range: float = 10.0) -> np.ndarray:
+    """The paper's sensory-space baseline: the readings divided by the range, (N, R) float32."""
+    return (np.asarray(sensors, dtype=np.float32) / np.float32(max_range)).astype(np.float32)
+
+
+def world_events(world: World, sensors: np.ndarray, poses: np.ndarray, max_range: float) -> dict:
+    """The ground-truth events of each step: ``{name: (N,) bool}``; wall ends only if any exist."""
+    out = {"corner": ev.corner_in_view(world, poses)}
+    if len(ev.free_wall_ends(world)):
+        out["wall_end"] = ev.wall_end_in_view(world, poses)
+    out["nothing"] = ev.nothing_in_view(sensors, max_range)
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class RepresentationAnalysis:
+    """What ``analyze_representation`` found: JSON-ready numbers plus what the figures need."""
+
+    metrics: dict
+    """JSON-ready numbers (see ``analyze_representation``)."""
+    labels: np.ndarray = field(repr=False)
+    """(N,) cluster of each step."""
+    pc: np.ndarray = field(repr=False)
+    """(N, 2) PCA coordinates of each step."""
+    kmeans: KMeans = field(repr=False)
+    pca: PCA = field(repr=False)
+    events: dict = field(repr=False)
+    """``{name: (N,) bool}`` ground-truth events, plus ``distance_behind`` (N,) float."""
+
+    def cluster_titles(self) -> list[str]:
+        """One panel title per cluster: ``#c share%  event precision% (lift x)``.
+
+        The event is the cluster's strongest (highest lift); e.g. ``#3  1.4%  corner 23% (11x)``:
+        cluster 3 holds 1.4 % of the steps, 23 % of them see a corner, 11 times the base rate.
+        """
+        titles = []
+        for c in self.metrics["clusters"]:
+            title = f"#{c['id']}  {c['share']:.1%}"
+            name = c["strongest_event"]
+            if name is not None:
+                precision, lift = c["precision"][name], c["lift"][name]
+                title += f"  {name.replace('_', ' ')} {precision:.0%} ({lift:.2g}x)"
+            titles.append(title)
+        return titles
+
+
+def analyze_representation(
+    z: np.ndarray,
+    sensors: np.ndarray,
+    poses: np.ndarray,
+    world: World,
+    seed: int = 0,
+    kmeans: KMeans | None = None,
+    pca: PCA | None = None,
+    max_range: float = 10.0,
+    k: int = N_CLUSTERS,
+) -> RepresentationAnalysis:
+    """Cluster and score a representation ``z`` (N, D) of steps with raw ``sensors`` (N, R, in
+    units) and true ``poses`` (N, 3) in ``world``.
+
+    With ``kmeans`` (and ``pca``) fitted elsewhere, e.g. on another world, they are only applied
+    (transfer); otherwise they are fitted here with ``seed``. ``metrics`` holds:
+
+    - ``n_steps``, ``dim``, ``seed``, ``k``, ``transfer``, ``world``, ``pca_explained_variance``;
+    - ``events``: per event (corner, wall_end where the world has free ends, nothing) the best
+      cluster's ``precision``, ``recall``, ``f1``, ``cluster`` and the event's ``rate``, ``count``;
+    - ``memory``: ``memory_scores``; ``position``: ``position_scores``;
+    - ``clusters``: per cluster ``id``, ``size``, ``share``, ``precision`` and ``lift``
+      (precision / rate) per event, and ``strongest_event``: the event of highest lift among those
+      with lift > 1 (None when none is over-represented).
+    """
+    z = check_z(z)
+    poses = np.asarray(poses, dtype=np.float64)
+    sensors = np.asarray(sensors, dtype=np.float64)
+    if not (len(z) == len(poses) == len(sensors)):
+        raise ValueError(
+            f"z, sensors and poses differ in rows: {len(z)}, {len(sensors)}, {len(poses)}"
+        )
+    transfer = kmeans is not None
+    pca = pca if pca is not None else fit_pca(z, seed)
+    kmeans = kmeans if kmeans is not None else fit_kmeans(z, k, seed)
+    k = int(kmeans.n_clusters)
+    labels = assign_clusters(kmeans, z)
+    pc = project_2d(pca, z)
+
+    events = world_events(world, sensors, poses, max_range)
+    behind = ev.distance_behind(world, poses)
+    tables = {name: cluster_event_table(labels, e, k) for name, e in events.items()}
+    rates = {name: float(e.mean()) for name, e in events.items()}
+    size = np.bincount(labels, minlength=k)
+    clusters = []
+    for c in range(k):
+        precision = {name: float(t["precision"][c]) for name, t in tables.items()}
+        lift = {name: (precision[name] / rates[name] if rates[name] > 0 else 0.0) for name in rates}
+        over = {name: v for name, v in lift.items() if v > 1.0}
+        clusters.append(
+            {
+                "id": c,
+                "size": int(size[c]),
+                "share": float(size[c] / len(z)),
+                "precision": precision,
+                "lift": lift,
+                "strongest_event": max(over, key=over.get) if over else None,
+            }
+        )
+    metrics = {
+        "world": world.name,
+        "n_steps": len(z),
+        "dim": int(z.shape[1]),
+        "seed": seed,
+        "k": k,
+        "transfer": transfer,
+        "pca_explained_variance": [float(v) for v in pca.explained_variance_ratio_],
+        "events": {name: event_scores(labels, e, k) for name, e in events.items()},
+        "memory": memory_scores(z, labels, events["nothing"], behind, seed, k),
+        "position": position_scores(z, poses, seed, (world.width, world.height)),
+        "clusters": clusters,
+    }
+    return RepresentationAnalysis(
+        metrics, labels, pc, kmeans, pca, {**events, "distance_behind": behind}
+    )

@@ -1,0 +1,204 @@
+"""``sensorimotor analyze``: a representation of a database's test split, analysed and drawn.
+
+The representation is ``raw`` (the 5 readings divided by the range: the paper's sensory space)
+or a trained run folder's ``z_s`` (``evaluate.representation``; recurrent models carry their
+state from the split's start). With ``fit_data``, PCA and k-means are fitted on that database's
+test split and applied to ``data``'s (transfer, paper section V.G).
+
+Writes into ``out``: ``metrics.json``, ``pca.png`` (Fig. 4), ``clusters.png`` (Figs. 5-8; the
+transferred clusters with ``fit_data``) and, with ``fit_data``, ``clusters_fit.png`` (the
+clusters on the world they were fitted on).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from sensorimotor import __version__
+from sensorimotor.analysis.clusters import N_CLUSTERS
+from sensorimotor.analysis.representation import (
+    RepresentationAnalysis,
+    analyze_representation,
+    raw_representation,
+)
+from sensorimotor.data import Database, atomic_path, load_database
+from sensorimotor.errors import InputError
+from sensorimotor.sim import SensorLayout, read_sensors
+
+RAW = "raw"  # the RUN_DIR that means "the raw readings"
+SPLIT = "test"
+
+
+def representation_of(run, db: Database, split: str = SPLIT) -> np.ndarray:
+    """(n, D) representation of ``db``'s split: ``run`` is ``"raw"``, a run folder or a loaded
+    ``evaluate.Run``. InputError naming the file if the split is too short to cluster."""
+    n = len(db.take(split))
+    if n < N_CLUSTERS:
+        raise InputError(
+            f"{db.path}: the {split} split has {n} steps; the analysis needs at least {N_CLUSTERS}"
+        )
+    if isinstance(run, str) and run == RAW:
+        return raw_representation(db.take(split).sensors, db.max_range)
+    from sensorimotor.evaluate import representation  # torch only when a model is analysed
+
+    return representation(run, db, split)
+
+
+def truth_readings(db: Database, split: str = SPLIT) -> np.ndarray:
+    """Noiseless readings of a split: the stored ones, recomputed at the poses if noise was added
+    (so "nothing in view" is the truth, not a noisy guess)."""
+    part = db.take(split)
+    if not db.meta.get("noise_std"):
+        return np.asarray(part.sensors, dtype=np.float64)
+    layout = db.meta.get("sensor_layout", {})
+    layout = SensorLayout(tuple(layout.get("angles", SensorLayout().angles)), db.max_range)
+    return read_sensors(db.world, part.poses, layout)
+
+
+def _analyze(run, db: Database, seed: int, fitted: RepresentationAnalysis | None = None):
+    z = representation_of(run, db)
+    part = db.take(SPLIT)
+    kmeans, pca = (fitted.kmeans, fitted.pca) if fitted else (None, None)
+    if fitted is not None and z.shape[1] != fitted.kmeans.n_features_in_:
+        raise InputError(
+            f"{db.path}: {z.shape[1]}-d representation, the clusters were fitted on "
+            f"{fitted.kmeans.n_features_in_}-d ones"
+        )
+    return analyze_representation(
+        z, truth_readings(db), part.poses, db.world, seed, kmeans, pca, db.max_range
+    )
+
+
+def _check_same_layout(fit_db: Database, db: Database) -> None:
+    a, b = fit_db.meta.get("sensor_layout"), db.meta.get("sensor_layout")
+    if a and b and a != b:
+        raise InputError(f"{db.path}: sensor layout {b} differs from {fit_db.path}'s {a}")
+
+
+def _out_dir(out: Path) -> Path:
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: is a file, not an output folder")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise InputError(f"{out}: cannot create the output folder ({err.strerror})") from None
+    return out
+
+
+@dataclass(frozen=True)
+class AnalyzeResult:
+    """What ``analyze_files`` wrote and found."""
+
+    metrics: dict  # the content of metrics.json
+    files: list[Path]
+
+
+def analyze_files(
+    run: str | Path,
+    data: str | Path,
+    out: str | Path,
+    fit_data: str | Path | None = None,
+    seed: int = 0,
+) -> AnalyzeResult:
+    """Analyse ``run``'s representation (``"raw"`` or a run folder) of ``data``'s test split and
+    write the figures and ``metrics.json`` into ``out`` (see the module docstring)."""
+    from sensorimotor.analysis_plots import plot_clusters, plot_pca, plot_transfer
+    from sensorimotor.plots import save_figure
+
+    db = load_database(data)
+    fit_db = load_database(fit_data) if fit_data is not None else None
+    if str(run) != RAW:
+        from sensorimotor.evaluate import load_run
+
+        run = load_run(run)
+    else:
+        run = RAW
+        if fit_db is not None:
+            _check_same_layout(fit_db, db)
+    out = _out_dir(out)
+
+    source = _analyze(run, fit_db, seed) if fit_db is not None else None
+    result = _analyze(run, db, seed, source)
+    part = db.take(SPLIT)
+    files = []
+    pca_title = "PCA" + (f" fitted on {fit_db.world.name}" if fit_db is not None else "")
+    ax = plot_pca(result.pc, part.sensors.min(axis=1), title=f"{pca_title}: {db.world.name}")
+    files += save_figure(ax.figure, out / "pca.png")
+    name = RAW if run == RAW else run.kind
+    if source is None:
+        fig = plot_clusters(
+            db.world,
+            part.poses,
+            result.labels,
+            seed,
+            titles=result.cluster_titles(),
+            suptitle=f"{name} on {db.world.name}: {len(part):,} test steps",
+        )
+    else:
+        fig = plot_transfer(
+            db.world,
+            part.poses,
+            result.labels,
+            fit_db.world.name,
+            seed,
+            titles=result.cluster_titles(),
+        )
+        fit_fig = plot_clusters(
+            fit_db.world,
+            fit_db.take(SPLIT).poses,
+            source.labels,
+            seed,
+            titles=source.cluster_titles(),
+            suptitle=f"{name} on {fit_db.world.name}: {len(fit_db.take(SPLIT)):,} test steps",
+        )
+        files += save_figure(fit_fig, out / "clusters_fit.png")
+    files += save_figure(fig, out / "clusters.png")
+
+    metrics = {
+        "run": RAW if run == RAW else str(run.path),
+        "model": name,
+        "data": str(data),
+        "fit_data": None if fit_data is None else str(fit_data),
+        "split": SPLIT,
+        "version": __version__,
+        "analysis": result.metrics,
+        "fit_analysis": None if source is None else source.metrics,
+    }
+    path = out / "metrics.json"
+    with atomic_path(path, ".json") as tmp:
+        tmp.write_text(json.dumps(metrics, indent=2) + "\n")
+    files.append(path)
+    return AnalyzeResult(metrics, files)
+
+
+def summary_lines(metrics: dict) -> list[str]:
+    """The main numbers of one ``analyze_representation`` result, as printable lines."""
+    m = metrics
+    lines = [
+        f"{m['world']}: {m['n_steps']:,} steps, {m['dim']}-d representation, "
+        f"k = {m['k']}{' (transferred)' if m['transfer'] else ''}"
+    ]
+    for name, e in m["events"].items():
+        best = "" if e["cluster"] is None else f"best cluster #{e['cluster']}: "
+        lines.append(
+            f"  {name.replace('_', ' ') + ' in view':<18} {e['rate']:6.1%} of steps; {best}"
+            f"precision {e['precision']:.2f}, recall {e['recall']:.2f}, F1 {e['f1']:.2f}"
+        )
+    mem = m["memory"]
+    r2 = mem["distance_behind_r2"]
+    lines.append(
+        f"  memory: {mem['nothing_clusters']} cluster(s) mostly nothing in view; distance-behind "
+        f"R^2 (nothing in view) {'n/a' if r2 is None else f'{r2:.2f}'}"
+    )
+    p = m["position"]
+    lines.append(
+        f"  position R^2: x {p['r2_x']:.2f}, y {p['r2_y']:.2f}, cos {p['r2_cos_heading']:.2f}, "
+        f"sin {p['r2_sin_heading']:.2f}; KNN-MSE {p['knn_mse']:.3f} (chance "
+        f"{p['knn_mse_chance']:.3f})"
+    )
+    return lines

@@ -1,0 +1,25 @@
+"""Gymnasium environments; importing this module registers them.
+
+>>> import gymnasium as gym
+>>> import sensorimotor.envs
+>>> env = gym.make("sensorimotor/LaserWorld-v0", world="rooms1")
+
+``gym.make("sensorimotor.envs:sensorimotor/LaserWorld-v0")`` imports this module itself.
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+
+from sensorimotor.envs.laser_world import LaserWorldEnv, paper_policy
+
+LASER_WORLD_ID = "sensorimotor/LaserWorld-v0"
+
+if LASER_WORLD_ID not in gym.registry:  # importlib.reload must not re-register (a warning)
+    gym.register(
+        id=LASER_WORLD_ID,
+        entry_point="sensorimotor.envs.laser_world:LaserWorldEnv",
+        max_episode_steps=10_000,
+    )
+
+__all__ = ["LASER_WORLD_ID", "LaserWorldEnv", "paper_policy"]

@@ -1,0 +1,294 @@
+"""Scores on synthetic representations whose answer is known, the whole analysis on raw readings,
+and the figures' panels and arrows."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from matplotlib.quiver import Quiver
+
+from conftest import assert_one_line_error
+from sensorimotor import analysis as an
+from sensorimotor.analysis_plots import plot_clusters, plot_pca, plot_transfer
+from sensorimotor.data import generate, load_database, save_database
+from sensorimotor.errors import InputError
+from sensorimotor.world import load_world
+
+
+@pytest.fixture(scope="module")
+def square_test(square_db_path):
+    db = load_database(square_db_path)
+    return db.world, db.take("test")
+
+
+def rare_event(n=5000, rate=0.05, seed=0):
+    return np.random.default_rng(seed).random(n) < rate
+
+
+# ---------------------------------------------------------------------------------------------
+# Events against clusters
+
+
+def test_event_scores_by_hand():
+    labels = np.array([0, 0, 1, 1, 1, 2])
+    event = np.array([1, 0, 1, 1, 0, 0], bool)
+    # cluster 0: P 1/2, R 1/3, F1 0.4; cluster 1: P 2/3, R 2/3, F1 2/3; cluster 2: 0
+    got = an.event_scores(labels, event)
+    assert got["cluster"] == 1
+    assert got["precision"] == pytest.approx(2 / 3)
+    assert got["recall"] == pytest.approx(2 / 3)
+    assert got["f1"] == pytest.approx(2 / 3)
+    assert got["count"] == 3
+    assert got["rate"] == pytest.approx(0.5)
+
+
+def test_a_representation_equal_to_the_event_gives_f1_one():
+    event = rare_event()
+    noise = np.random.default_rng(1).normal(0, 0.01, len(event))
+    z = np.column_stack([event.astype(float), noise])
+    labels = an.assign_clusters(an.fit_kmeans(z, k=2, seed=0), z)
+    got = an.event_scores(labels, event)
+    assert got["f1"] == pytest.approx(1.0)
+    assert got["precision"] == pytest.approx(1.0)
+    assert got["recall"] == pytest.approx(1.0)
+
+
+def test_random_clusters_give_a_low_f1():
+    event = rare_event()
+    z = np.random.default_rng(2).normal(size=(len(event), 10))
+    labels = an.assign_clusters(an.fit_kmeans(z, k=20, seed=0), z)
+    assert an.event_scores(labels, event)["f1"] < 0.15
+
+
+def test_an_event_that_never_occurs():
+    got = an.event_scores(np.arange(10) % 3, np.zeros(10, bool))
+    assert got["cluster"] is None
+    assert got["f1"] == 0.0
+    assert got["count"] == 0
+
+
+# ---------------------------------------------------------------------------------------------
+# Probes
+
+
+def test_probe_finds_a_target_the_representation_contains():
+    rng = np.random.default_rng(0)
+    behind = rng.uniform(0, 50, 4000)
+    z = np.column_stack([rng.normal(size=4000), 0.1 * behind + rng.normal(0, 0.01, 4000)])
+    assert an.probe_r2(z, behind, seed=0) > 0.99
+
+
+def test_probe_on_a_random_representation_scores_about_zero():
+    rng = np.random.default_rng(0)
+    behind = rng.uniform(0, 50, 4000)
+    z = rng.normal(size=(4000, 10))
+    assert an.probe_r2(z, behind, seed=0) < 0.02
+
+
+def test_memory_scores_use_only_the_steps_with_nothing_in_view():
+    rng = np.random.default_rng(0)
+    n = 6000
+    nothing = rng.random(n) < 0.5
+    behind = rng.uniform(0, 50, n)
+    # z knows the distance behind only while nothing is in view
+    z = np.where(nothing, behind, rng.uniform(0, 50, n))[:, None]
+    labels = nothing.astype(int)
+    got = an.memory_scores(z, labels, nothing, behind, seed=0)
+    assert got["distance_behind_r2"] > 0.99
+    assert got["nothing_clusters"] == 1
+    assert got["nothing_cluster_ids"] == [1]
+    assert got["n_nothing"] == int(nothing.sum())
+    blind = an.memory_scores(rng.normal(size=(n, 3)), labels, nothing, behind, seed=0)
+    assert blind["distance_behind_r2"] < 0.02
+
+
+def test_position_scores_and_knn_mse():
+    rng = np.random.default_rng(0)
+    n = 3000
+    poses = np.column_stack([rng.uniform(0, 50, n), rng.uniform(0, 50, n), rng.uniform(-3, 3, n)])
+    exact = np.column_stack([poses[:, 0], poses[:, 1], np.cos(poses[:, 2]), np.sin(poses[:, 2])])
+    got = an.position_scores(exact, poses, seed=0, world_size=(50, 50))
+    for key in ("r2_x", "r2_y", "r2_cos_heading", "r2_sin_heading"):
+        assert got[key] > 0.99, key
+    assert got["knn_mse"] < 0.005
+    assert got["knn_mse_chance"] == pytest.approx(1 / 3, rel=0.1)  # uniform in the unit square
+    blind = an.position_scores(rng.normal(size=(n, 10)), poses, seed=0, world_size=(50, 50))
+    assert blind["r2_x"] < 0.02
+    assert blind["knn_mse"] == pytest.approx(blind["knn_mse_chance"], rel=0.1)
+
+
+def test_knn_mse_subsamples_large_inputs():
+    rng = np.random.default_rng(0)
+    z = rng.normal(size=(500, 2))
+    got = an.knn_mse(z, rng.uniform(0, 10, (500, 2)), (10, 10), max_points=200)
+    assert got["points"] == 200
+
+
+# ---------------------------------------------------------------------------------------------
+# Determinism
+
+
+def test_kmeans_and_pca_are_deterministic_for_a_seed():
+    z = np.random.default_rng(0).normal(size=(3000, 10))
+    a, b = an.fit_kmeans(z, seed=3), an.fit_kmeans(z, seed=3)
+    np.testing.assert_array_equal(a.cluster_centers_, b.cluster_centers_)
+    np.testing.assert_array_equal(an.assign_clusters(a, z), an.assign_clusters(b, z))
+    np.testing.assert_array_equal(an.pca_2d(z, seed=3), an.pca_2d(z, seed=3))
+    assert an.pca_2d(z).shape == (3000, 2)
+    assert an.pca_2d(z[:, :1]).shape == (3000, 2)  # a 1-d representation is padded
+
+
+def test_assign_refuses_another_dimension():
+    km = an.fit_kmeans(np.random.default_rng(0).normal(size=(100, 4)), k=3)
+    with pytest.raises(ValueError, match="4-d"):
+        an.assign_clusters(km, np.zeros((5, 3)))
+
+
+# ---------------------------------------------------------------------------------------------
+# The whole analysis on raw readings, and transfer
+
+
+def test_analyze_raw_readings(square_test):
+    world, part = square_test
+    z = an.raw_representation(part.sensors)
+    res = an.analyze_representation(z, part.sensors, part.poses, world, seed=0)
+    m = json.loads(json.dumps(res.metrics))  # JSON-ready
+    assert m["n_steps"] == len(part) == len(res.labels) == len(res.pc)
+    assert m["k"] == 20
+    assert len(m["clusters"]) == 20
+    assert set(m["events"]) == {"corner", "nothing"}  # square has no free wall end
+    assert sum(c["size"] for c in m["clusters"]) == len(part)
+    # raw readings put every "nothing in view" step at one point: one cluster holds them all
+    assert m["events"]["nothing"]["recall"] == pytest.approx(1.0)
+    assert m["events"]["nothing"]["f1"] > 0.8
+    assert m["memory"]["nothing_clusters"] == 1
+    assert m["memory"]["distance_behind_r2"] < 0.05  # no memory in raw readings
+    assert m["position"]["r2_x"] < 0.1
+    assert len(res.cluster_titles()) == 20
+
+
+def test_transfer_applies_clusters_fitted_on_another_world(square_test, rooms1_db_path):
+    world, part = square_test
+    source = an.analyze_representation(
+        an.raw_representation(part.sensors), part.sensors, part.poses, world, seed=0
+    )
+    rooms1 = load_database(rooms1_db_path)
+    target = rooms1.take("test")
+    z = an.raw_representation(target.sensors)
+    res = an.analyze_representation(
+        z, target.sensors, target.poses, rooms1.world, kmeans=source.kmeans, pca=source.pca
+    )
+    assert res.metrics["transfer"] is True
+    assert res.kmeans is source.kmeans
+    assert "wall_end" in res.metrics["events"]
+    np.testing.assert_array_equal(res.labels, source.kmeans.predict(z.astype(np.float64)))
+
+
+# ---------------------------------------------------------------------------------------------
+# Figures
+
+
+def quivers(ax):
+    return [c for c in ax.collections if isinstance(c, Quiver)]
+
+
+def test_cluster_figure_has_one_panel_per_cluster_and_500_arrows_at_most(square_test):
+    world, part = square_test
+    labels = np.random.default_rng(0).integers(0, 20, len(part))
+    labels[labels == 7] = 6  # an empty cluster draws an empty panel
+    fig = plot_clusters(world, part.poses, labels, n_arrows=50, titles=[f"c{i}" for i in range(20)])
+    axes = fig.axes
+    assert len(axes) == 20
+    for c, ax in enumerate(axes):
+        (q,) = quivers(ax)
+        assert min(50, int((labels == c).sum())) == q.N
+        assert ax.get_title() == f"c{c}"
+        assert any(line.get_gid() == "wall" for line in ax.lines)
+    assert quivers(axes[7])[0].N == 0
+
+
+def test_cluster_figure_of_a_few_clusters_and_transfer(square_test):
+    world, part = square_test
+    labels = np.arange(len(part)) % 20
+    fig = plot_transfer(world, part.poses, labels, source="rooms1", clusters=[3, 5, 9])
+    assert len(fig.axes) == 3
+    assert "rooms1" in fig.get_suptitle()
+    assert [quivers(ax)[0].N for ax in fig.axes] == [100, 100, 100]
+    fig = plot_clusters(world, part.poses, labels, clusters=range(7))
+    assert len(fig.axes) == 10  # 2 x 5 grid
+    assert sum(ax.axison for ax in fig.axes) == 7
+
+
+def test_pca_figure(square_test):
+    _, part = square_test
+    pc = an.pca_2d(an.raw_representation(part.sensors))
+    ax = plot_pca(pc, part.sensors.min(axis=1))
+    assert len(ax.figure.axes) == 2  # the map and its colour bar
+    (points,) = [c for c in ax.collections if c.get_gid() == "pca"]
+    assert len(points.get_offsets()) == len(part)
+    assert len(plot_pca(pc, part.sensors.min(axis=1), colorbar=False).figure.axes) == 1
+
+
+# ---------------------------------------------------------------------------------------------
+# The `analyze` command
+
+
+def test_cli_analyze_raw_writes_figures_and_metrics(cli, square_db_path, tmp_path):
+    out = tmp_path / "raw_square"
+    proc = cli("analyze", "raw", "--data", square_db_path, "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    assert "corner in view" in proc.stdout
+    assert "KNN-MSE" in proc.stdout
+    assert sorted(p.name for p in out.iterdir()) == ["clusters.png", "metrics.json", "pca.png"]
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["run"] == "raw"
+    assert m["fit_analysis"] is None
+    assert m["analysis"]["n_steps"] == len(load_database(square_db_path).take("test"))
+    assert m["analysis"]["world"] == "square"
+
+
+def test_analyze_transfer_fits_on_one_world_and_applies_to_another(
+    square_db_path, rooms1_db_path, tmp_path
+):
+    res = an.analyze_files("raw", rooms1_db_path, tmp_path / "t", fit_data=square_db_path)
+    names = sorted(p.name for p in (tmp_path / "t").iterdir())
+    assert names == ["clusters.png", "clusters_fit.png", "metrics.json", "pca.png"]
+    m = res.metrics
+    assert m["fit_analysis"]["world"] == "square"
+    assert not m["fit_analysis"]["transfer"]
+    assert m["analysis"]["world"] == "rooms1"
+    assert m["analysis"]["transfer"]
+    assert "wall_end" in m["analysis"]["events"]
+
+
+def test_cli_analyze_bad_input_is_one_line(cli, tmp_path):
+    missing = tmp_path / "nope.npz"
+    proc = cli("analyze", "raw", "--data", missing, "--out", tmp_path / "o")
+    assert_one_line_error(proc, str(missing))
+
+
+def test_analyze_refuses_bad_input_naming_the_file(square_db_path, tmp_path):
+    with pytest.raises(InputError, match="no_run"):
+        an.analyze_files(tmp_path / "no_run", square_db_path, tmp_path / "o")
+    tiny = tmp_path / "tiny.npz"
+    save_database(generate(load_world("square"), 150, seed=0), tiny)  # a 15-step test split
+    with pytest.raises(InputError, match=f"{tiny}.*at least 20"):
+        an.analyze_files("raw", tiny, tmp_path / "o")
+    a_file = tmp_path / "file"
+    a_file.write_text("")
+    with pytest.raises(InputError, match=str(a_file)):
+        an.analyze_files("raw", square_db_path, a_file)
+    with pytest.raises(InputError, match="not found"):
+        an.analyze_files("raw", square_db_path, tmp_path / "o", fit_data=tmp_path / "x.npz")
+
+
+def test_analyze_refuses_clusters_fitted_on_another_sensor_layout(square_db_path, tmp_path):
+    db = load_database(square_db_path)
+    other = tmp_path / "wide.npz"
+    meta = {**db.meta, "sensor_layout": {"angles": [-1.0, -0.5, 0.0, 0.5, 1.0], "max_range": 10.0}}
+    save_database(replace(db, meta=meta), other)
+    with pytest.raises(InputError, match="sensor layout"):
+        an.analyze_files("raw", square_db_path, tmp_path / "o", fit_data=other)

@@ -1,0 +1,179 @@
+"""The real command line (``python -m sensorimotor``) in a subprocess: ``generate`` writes a
+database, and every bad input is one line on stderr, exit code 2, and no file left behind."""
+
+from __future__ import annotations
+
+import os
+import stat
+
+import numpy as np
+import pytest
+
+from conftest import assert_one_line_error
+from sensorimotor.data import generate, load_database
+from sensorimotor.world import load_world
+from test_world import BAD_WORLD_FILES
+
+# the world-file problems of DESIGN.md, each through the real command
+CLI_BAD_WORLDS = [
+    "not_toml",
+    "empty",
+    "unknown_key",
+    "missing_size",
+    "missing_walls",
+    "size_zero",
+    "size_nan",
+    "wall_inf",
+    "wall_three",
+    "wall_outside",
+    "wall_zero_length",
+    "no_free_start",
+]
+
+
+def test_generate_writes_a_loadable_database(cli, tmp_path):
+    out = tmp_path / "db.npz"
+    proc = cli("generate", "rooms1", "--steps", "1500", "--seed", "3", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert f"wrote {out}" in proc.stderr
+    db = load_database(out)
+    assert len(db) == 1_500
+    assert db.meta["seed"] == 3
+    assert db.meta["steps"] == 1_500
+    assert db.meta["world"]["name"] == "rooms1"
+    # the same bytes as the library's generate with that seed
+    assert db.sensors.tobytes() == generate(load_world("rooms1"), 1_500, seed=3).sensors.tobytes()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["db.npz"]  # no temporary left over
+    mode = stat.S_IMODE(out.stat().st_mode)
+    assert mode & 0o044 == 0o044 & ~_umask(), oct(mode)  # readable as any new file
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def test_generate_default_name_and_world_file(cli, tmp_path):
+    world = tmp_path / "lab.toml"
+    world.write_text("size = [30, 20]\nwalls = [[10, 0, 20, 12.5]]\n")
+    proc = cli("generate", world, "--steps", "300", "--seed", "8", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    db = load_database(tmp_path / "lab_s8.npz")
+    assert len(db) == 300
+    assert db.meta["world"] == {"name": "lab", "size": [30.0, 20.0], "walls": [[10, 0, 20, 12.5]]}
+    assert db.poses[:, 0].max() < 30
+    assert db.poses[:, 1].max() < 20
+
+
+def test_generate_with_noise(cli, tmp_path):
+    out = tmp_path / "noisy.npz"
+    proc = cli("generate", "square", "--steps", "400", "--noise", "0.1", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    db = load_database(out)
+    assert db.meta["noise_std"] == 0.1
+    assert not np.array_equal(db.sensors, generate(load_world("square"), 400, seed=0).sensors)
+
+
+def test_help(cli):
+    proc = cli("--help")
+    assert proc.returncode == 0
+    assert "generate" in proc.stdout
+    proc = cli("generate", "--help")
+    assert proc.returncode == 0, proc.stderr
+    for option in ("--steps", "--seed", "--out", "--noise", "square, rooms1, rooms2"):
+        assert option in proc.stdout, option
+
+
+def test_version(cli):
+    proc = cli("--version")
+    assert proc.returncode == 0
+    assert proc.stdout.startswith("sensorimotor ")
+
+
+# ---------------------------------------------------------------- bad input
+
+
+def assert_nothing_written(folder, *keep):
+    """Only the files the test made itself remain (no database, no temporary file)."""
+    left = sorted(p.name for p in folder.iterdir())
+    assert left == sorted(keep), left
+
+
+@pytest.mark.parametrize("case", CLI_BAD_WORLDS)
+def test_bad_world_file(cli, tmp_path, case):
+    text, problem = BAD_WORLD_FILES[case]
+    world = tmp_path / f"{case}.toml"
+    world.write_text(text)
+    proc = cli("generate", world, "--steps", "100", "--out", tmp_path / "db.npz", cwd=tmp_path)
+    assert_one_line_error(proc, str(world), problem)
+    assert_nothing_written(tmp_path, world.name)
+
+
+@pytest.mark.parametrize(
+    ("args", "needles"),
+    [
+        (["--steps", "0"], ["--steps", "at least 1"]),
+        (["--steps", "-5"], ["--steps", "at least 1"]),
+        (["--noise", "-0.5"], ["--noise", "non-negative"]),
+        (["--noise", "nan"], ["--noise", "non-negative"]),
+    ],
+)
+def test_bad_option(cli, tmp_path, args, needles):
+    proc = cli("generate", "square", *args, "--out", tmp_path / "db.npz", cwd=tmp_path)
+    assert_one_line_error(proc, *needles)
+    assert_nothing_written(tmp_path)
+
+
+def test_more_steps_than_memory(cli, tmp_path):
+    proc = cli("generate", "square", "--steps", "10000000000000", "--out", tmp_path / "db.npz")
+    assert_one_line_error(proc, "--steps 10,000,000,000,000", "memory")
+    assert_nothing_written(tmp_path)
+
+
+def test_unknown_world_name_lists_the_known_ones(cli, tmp_path):
+    proc = cli("generate", "mars", "--steps", "10", cwd=tmp_path)
+    assert_one_line_error(proc, "'mars'", "square", "rooms1", "rooms2")
+    assert_nothing_written(tmp_path)
+
+
+def test_missing_world_file(cli, tmp_path):
+    proc = cli("generate", tmp_path / "nope.toml", "--steps", "10", cwd=tmp_path)
+    assert_one_line_error(proc, "nope.toml", "not found")
+    assert_nothing_written(tmp_path)
+
+
+def test_output_folder_does_not_exist(cli, tmp_path):
+    out = tmp_path / "no" / "such" / "db.npz"
+    proc = cli("generate", "square", "--steps", "10", "--out", out, cwd=tmp_path)
+    assert_one_line_error(proc, str(out), "does not exist")
+    assert_nothing_written(tmp_path)
+
+
+def test_output_under_a_regular_file(cli, tmp_path):
+    (tmp_path / "somefile.txt").write_text("x")
+    out = tmp_path / "somefile.txt" / "out.npz"
+    proc = cli("generate", "square", "--steps", "10", "--out", out, cwd=tmp_path)
+    assert_one_line_error(proc, str(out), "not a folder")
+    assert_nothing_written(tmp_path, "somefile.txt")
+
+
+def test_output_is_a_folder(cli, tmp_path):
+    (tmp_path / "dir.npz").mkdir()
+    proc = cli("generate", "square", "--steps", "10", "--out", tmp_path / "dir.npz")
+    assert_one_line_error(proc, "dir.npz", "is a folder")
+    assert_nothing_written(tmp_path / "dir.npz")
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into a read-only folder anyway")
+def test_output_folder_not_writable(cli, tmp_path):
+    folder = tmp_path / "ro"
+    folder.mkdir()
+    folder.chmod(0o555)
+    try:
+        proc = cli("generate", "square", "--steps", "10", "--out", folder / "db.npz")
+        assert_one_line_error(proc, "db.npz", "not writable")
+        assert_nothing_written(folder)
+    finally:
+        folder.chmod(0o755)

@@ -1,0 +1,277 @@
+"""Training: the TBPTT stream layout, the paper's early stopping, learning, determinism, resume."""
+
+from __future__ import annotations
+
+import json
+import math
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import torch
+
+import sensorimotor.train as train_mod
+from conftest import assert_one_line_error
+from sensorimotor.data import generate, load_database, save_database
+from sensorimotor.evaluate import baselines, load_run, model_error, split_tensors
+from sensorimotor.models import build_model
+from sensorimotor.train import (
+    EarlyStopping,
+    FusedAdam,
+    TrainConfig,
+    stream_layout,
+    train,
+    train_epoch_recurrent,
+)
+from sensorimotor.world import load_world
+
+# --- the stream layout of truncated back-propagation through time -------------------------
+
+
+@pytest.mark.parametrize(("n", "streams"), [(1280, 64), (1000, 64), (64, 64), (12345, 7)])
+def test_stream_layout_sees_every_step_once_in_contiguous_streams(n, streams):
+    index, mask = stream_layout(n, streams)
+    seen = index[mask]
+    assert sorted(seen.tolist()) == list(range(n))  # every step exactly once
+    lengths = mask.sum(1)
+    assert int(lengths.max() - lengths.min()) <= 1
+    for k in range(streams):
+        row = index[k, : lengths[k]]
+        assert torch.equal(row, torch.arange(int(row[0]), int(row[0]) + len(row)))  # contiguous
+        assert bool(mask[k, : lengths[k]].all())
+        assert not bool(mask[k, lengths[k] :].any())
+    starts = index[:, 0]
+    assert bool((starts[1:] > starts[:-1]).all())  # streams in order, stream k follows k - 1
+
+
+class StateSpy(torch.nn.Module):
+    """Wraps a recurrent model and records the state handed to each call."""
+
+    def __init__(self, model):
+        super().__init__()
+        self.model, self.seen, self.returned = model, [], []
+
+    def forward(self, s, m, state=None):
+        self.seen.append(None if state is None else tuple(t.clone() for t in state))
+        out = self.model(s, m, state)
+        self.returned.append(tuple(t.detach().clone() for t in out[2]))
+        return out
+
+
+def test_recurrent_epoch_carries_detached_state_and_resets_each_epoch():
+    spy = StateSpy(build_model("rec-sm", seed=0))
+    opt = FusedAdam(spy.model.parameters())
+    s, m = torch.rand(64 * 45 + 1, 5), torch.rand(64 * 45 + 1, 2)  # 45 steps a stream: 3 chunks
+    for _epoch in range(2):
+        start = len(spy.seen)
+        train_epoch_recurrent(spy, opt, s, m, streams=64, horizon=20)
+        calls = spy.seen[start:]
+        assert len(calls) == 3  # chunks of 20, 20, 5
+        assert calls[0] is None  # reset at the start of each epoch
+        for prev, cur in zip(spy.returned[start:], calls[1:], strict=False):
+            assert all(
+                torch.equal(a, b) and not b.requires_grad for a, b in zip(prev, cur, strict=True)
+            )
+
+
+# --- early stopping ------------------------------------------------------------------------
+
+SCRIPT = [1.0, 0.97, 0.94, 0.93, 0.92, 0.95, 0.91, 0.90, 0.96, 0.97, 0.98, 0.99, 0.99, 0.5]
+# e0 improves (ref 1.0); e1 does not (0.97 >= 0.95); e2 improves (ref 0.94); e3..e12 stay above
+# 0.95 * 0.94 = 0.893, so the 10th epoch without improvement is e12: stop there. Lowest: e7.
+
+
+def test_early_stopping_rule_on_a_script():
+    stopper = EarlyStopping(patience=10, min_ratio=0.95)
+    improved = []
+    for epoch, err in enumerate(SCRIPT):
+        improved.append(stopper.update(epoch, err)[0])
+        if stopper.should_stop:
+            break
+    assert epoch == 12
+    assert improved[:3] == [True, False, True]
+    assert not any(improved[3:])
+    assert (stopper.best_epoch, stopper.lowest) == (7, 0.90)
+
+
+def test_train_stops_at_the_scripted_epoch_and_keeps_the_best_weights(tmp_path, monkeypatch):
+    db = tmp_path / "sq.npz"
+    save_database(generate(load_world("square"), 3000, seed=0), db)
+    snapshots = []
+
+    def scripted(model, s, m):
+        snapshots.append({k: v.clone() for k, v in model.state_dict().items()})
+        return SCRIPT[len(snapshots) - 1]
+
+    monkeypatch.setattr(train_mod, "model_error", scripted)
+    config = TrainConfig(model="s", seed=0, batch_size=64)
+    result = train(db, tmp_path / "run", config)
+    assert (result.epochs, result.best_epoch, result.stopped) == (13, 7, "early stopping")
+    kept = torch.load(tmp_path / "run" / "model.pt", weights_only=True)
+    assert all(torch.equal(kept[k], snapshots[7][k]) for k in kept)
+    assert not all(torch.equal(kept[k], snapshots[12][k]) for k in kept)
+    history = (tmp_path / "run" / "history.csv").read_text().splitlines()
+    assert len(history) == 14  # header + 13 epochs
+
+
+# --- learning ------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def square50k(tmp_path_factory):
+    path = tmp_path_factory.mktemp("learn") / "square50k.npz"
+    save_database(generate(load_world("square"), 50_000, seed=0), path)
+    return path
+
+
+def _test_error(run_dir, db_path):
+    run, db = load_run(run_dir), load_database(db_path)
+    s, m = split_tensors(db, "test")
+    return model_error(run.model, s, m), baselines(db)["copy_last"]
+
+
+def test_sm_beats_copy_last_by_a_clear_margin(square50k, tmp_path):
+    train(square50k, tmp_path / "sm", TrainConfig(model="sm", seed=0, max_epochs=4))
+    err, copy_last = _test_error(tmp_path / "sm", square50k)
+    assert err < 0.5 * copy_last, (err, copy_last)
+
+
+def test_rec_sm_beats_copy_last_by_a_clear_margin(square50k, tmp_path):
+    # 50 k steps give only 31 TBPTT batches an epoch: patience is lifted so that it gets enough
+    config = TrainConfig(model="rec-sm", seed=0, max_epochs=40, patience=1000)
+    train(square50k, tmp_path / "rec", config)
+    err, copy_last = _test_error(tmp_path / "rec", square50k)
+    assert err < 0.5 * copy_last, (err, copy_last)
+
+
+# --- determinism and resume ----------------------------------------------------------------
+
+
+def _weights(run_dir):
+    return torch.load(run_dir / "checkpoint.pt", weights_only=True)["model"]
+
+
+@pytest.mark.parametrize("kind", ["sm", "rec-s"])
+def test_same_seed_same_weights_and_resume_equals_uninterrupted(kind, square_db_path, tmp_path):
+    cfg = TrainConfig(model=kind, seed=3, max_epochs=3)
+    train(square_db_path, tmp_path / "a", cfg)
+    train(square_db_path, tmp_path / "b", cfg)
+    wa, wb = _weights(tmp_path / "a"), _weights(tmp_path / "b")
+    assert all(torch.equal(wa[k], wb[k]) for k in wa)
+    other = TrainConfig(model=kind, seed=4, max_epochs=3)
+    train(square_db_path, tmp_path / "c", other)
+    assert not all(torch.equal(wa[k], _weights(tmp_path / "c")[k]) for k in wa)
+    # interrupted after 1 epoch, resumed to 3: the same weights as straight to 3
+    train(square_db_path, tmp_path / "r", TrainConfig(model=kind, seed=3, max_epochs=1))
+    train(square_db_path, tmp_path / "r", cfg, resume=True)
+    wr = _weights(tmp_path / "r")
+    assert all(torch.equal(wa[k], wr[k]) for k in wa)
+    ha = (tmp_path / "a" / "history.csv").read_text().splitlines()
+    hr = (tmp_path / "r" / "history.csv").read_text().splitlines()
+    assert [ln.split(",")[:3] for ln in ha] == [ln.split(",")[:3] for ln in hr]
+
+
+def test_resume_after_sigkill_matches_uninterrupted(square_db_path, tmp_path):
+    args = ["train", "rec-s", "--data", str(square_db_path), "--seed", "1", "--max-epochs", "4"]
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "sensorimotor", *args, "--out", str(tmp_path / "k")],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    ckpt = tmp_path / "k" / "checkpoint.pt"
+    deadline = time.time() + 120
+    while not ckpt.exists() and time.time() < deadline:
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    resumed = subprocess.run(
+        [sys.executable, "-m", "sensorimotor", *args, "--out", str(tmp_path / "k"), "--resume"],
+        capture_output=True,
+        text=True,
+    )
+    assert resumed.returncode == 0, resumed.stderr
+    train(square_db_path, tmp_path / "u", TrainConfig(model="rec-s", seed=1, max_epochs=4))
+    wk, wu = _weights(tmp_path / "k"), _weights(tmp_path / "u")
+    assert all(torch.equal(wk[k], wu[k]) for k in wu)
+    assert json.loads((tmp_path / "k" / "result.json").read_text())["epochs"] == 4
+
+
+def test_existing_run_needs_resume(square_db_path, tmp_path, cli):
+    train(square_db_path, tmp_path / "a", TrainConfig(model="s", max_epochs=1))
+    proc = cli("train", "s", "--data", square_db_path, "--out", tmp_path / "a")
+    assert_one_line_error(proc, str(tmp_path / "a"), "--resume")
+
+
+# --- bad input -----------------------------------------------------------------------------
+
+
+def _bad_npz(path, **overrides):
+    db = generate(load_world("square"), 2000, seed=0)
+    arrays = {
+        "sensors": db.sensors,
+        "motors": db.motors,
+        "poses": db.poses,
+        "meta": np.array(json.dumps(db.meta)),
+    }
+    arrays.update(overrides)
+    arrays = {k: v for k, v in arrays.items() if v is not None}
+    with open(path, "wb") as f:
+        np.savez(f, **arrays)
+    return path
+
+
+@pytest.mark.parametrize(
+    ("case", "needle"),
+    [
+        ("missing", "not found"),
+        ("truncated", "truncated"),
+        ("text", "npz"),
+        ("no_motors", "motors"),
+        ("wrong_shape", "shape"),
+        ("nan", "NaN"),
+        ("inf", "NaN or inf"),
+        ("tiny", "too small"),
+    ],
+)
+def test_bad_data_is_refused_with_one_line(case, needle, tmp_path, cli):
+    path = tmp_path / f"{case}.npz"
+    if case == "truncated":
+        good = _bad_npz(tmp_path / "good.npz")
+        path.write_bytes(good.read_bytes()[:-500])
+    elif case == "text":
+        path.write_text("sensors,motors\n1,2\n")
+    elif case == "no_motors":
+        _bad_npz(path, motors=None)
+    elif case == "wrong_shape":
+        _bad_npz(path, sensors=np.zeros((2000, 4), np.float32))
+    elif case in ("nan", "inf"):
+        s = generate(load_world("square"), 2000, seed=0).sensors.copy()
+        s[5, 2] = math.nan if case == "nan" else math.inf
+        _bad_npz(path, sensors=s)
+    elif case == "tiny":
+        save_database(generate(load_world("square"), 300, seed=0), path)
+    out = tmp_path / "run"
+    proc = cli("train", "rec-sm", "--data", path, "--out", out)
+    assert_one_line_error(proc, str(path), needle)
+    assert not out.exists()  # nothing half-written
+
+
+def test_unknown_model_is_refused(square_db_path, tmp_path, cli):
+    proc = cli("train", "transformer", "--data", square_db_path, "--out", tmp_path / "r")
+    assert_one_line_error(proc, "unknown model", "rec-sm")
+
+
+def test_corrupt_or_missing_checkpoint_is_refused(square_db_path, tmp_path, cli):
+    run = tmp_path / "run"
+    train(square_db_path, run, TrainConfig(model="s", max_epochs=1))
+    (run / "model.pt").write_bytes(b"not a checkpoint")
+    assert_one_line_error(cli("evaluate", run, "--data", square_db_path), "model.pt", "corrupt")
+    (run / "model.pt").unlink()
+    assert_one_line_error(cli("evaluate", run, "--data", square_db_path), "model.pt", "missing")
+    (run / "checkpoint.pt").write_bytes(b"\x00" * 10)
+    proc = cli("train", "s", "--data", square_db_path, "--out", run, "--resume")
+    assert_one_line_error(proc, "checkpoint.pt", "corrupt")
+    assert_one_line_error(cli("evaluate", tmp_path / "nope", "--data", square_db_path), "not found")

@@ -1,0 +1,139 @@
+"""World files: the built-in worlds are DESIGN.md's, and every bad file is refused in one line."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sensorimotor.errors import InputError
+from sensorimotor.world import (
+    BUILTIN_WORLDS,
+    free_start_cells,
+    load_world,
+    point_segment_distance,
+    world_from_dict,
+)
+
+# DESIGN.md, "Built-in worlds": the inner walls of each, x0, y0, x1, y1.
+DESIGN_WALLS = {
+    "square": [],
+    "rooms1": [[25, 0, 25, 35], [0, 25, 15, 25]],
+    "rooms2": [[0, 25, 38, 25], [17, 0, 17, 17], [33, 0, 33, 17], [25, 25, 25, 42]],
+}
+OUTER = [[0, 0, 50, 0], [50, 0, 50, 50], [50, 50, 0, 50], [0, 50, 0, 0]]
+
+# (file text, words the one-line message must contain): every way a world file can be bad.
+BAD_WORLD_FILES = {
+    "not_toml": ("size = 50\nwalls = [[1, 2, 3\n", "not valid TOML"),
+    "empty": ("", "empty"),
+    "blank": ("  \n\n", "empty"),
+    "unknown_key": ("size = 50\nwalls = []\ncolour = 'red'\n", "unknown key 'colour'"),
+    "missing_size": ("walls = []\n", "missing key 'size'"),
+    "missing_walls": ("size = 50\n", "missing key 'walls'"),
+    "size_zero": ("size = 0\nwalls = []\n", "must be positive"),
+    "size_negative": ("size = [50, -3]\nwalls = []\n", "must be positive"),
+    "size_three": ("size = [50, 50, 50]\nwalls = []\n", "'size' must be"),
+    "size_text": ("size = 'big'\nwalls = []\n", "'size' must be numbers"),
+    "size_nan": ("size = nan\nwalls = []\n", "not a finite number"),
+    "size_inf": ("size = [inf, 50]\nwalls = []\n", "not a finite number"),
+    "wall_nan": ("size = 50\nwalls = [[1, 1, nan, 5]]\n", "not a finite number"),
+    "wall_inf": ("size = 50\nwalls = [[1, 1, 5, -inf]]\n", "not a finite number"),
+    "wall_three": ("size = 50\nwalls = [[1, 1, 5]]\n", "must be 4 numbers"),
+    "wall_text": ("size = 50\nwalls = [[1, 1, 5, 'x']]\n", "must be 4 numbers"),
+    "wall_bool": ("size = 50\nwalls = [[1, 1, 5, true]]\n", "must be 4 numbers"),
+    "walls_not_list": ("size = 50\nwalls = 3\n", "'walls' must be a list"),
+    "wall_outside": ("size = 50\nwalls = [[10, 10, 60, 10]]\n", "outside the 50 x 50 world"),
+    "wall_negative": ("size = 50\nwalls = [[-1, 10, 20, 10]]\n", "outside"),
+    "wall_zero_length": ("size = 50\nwalls = [[10, 10, 10, 10]]\n", "zero length"),
+    "no_free_start": ("size = 1.5\nwalls = []\n", "no free start position"),
+    "no_free_start_walls": (
+        # 10 x 10 cut into 2-wide strips: every point is within 1 of a wall
+        "size = 10\nwalls = [[2, 0, 2, 10], [4, 0, 4, 10], [6, 0, 6, 10], [8, 0, 8, 10]]\n",
+        "no free start position",
+    ),
+    "name_empty": ("name = ''\nsize = 50\nwalls = []\n", "'name'"),
+}
+
+
+@pytest.mark.parametrize("name", BUILTIN_WORLDS)
+def test_builtin_worlds_have_the_walls_of_design(name):
+    world = load_world(name)
+    assert world.name == name
+    assert (world.width, world.height) == (50.0, 50.0)
+    assert world.walls.dtype == np.float64
+    assert world.walls.shape == (len(DESIGN_WALLS[name]), 4)
+    assert world.walls.tolist() == DESIGN_WALLS[name]
+    assert world.segments.dtype == np.float64
+    assert world.segments.tolist() == OUTER + DESIGN_WALLS[name]
+
+
+def test_world_file_round_trip(tmp_path):
+    path = tmp_path / "mine.toml"
+    path.write_text("size = [40, 30]\nwalls = [[0, 10, 20.5, 10], [30, 30, 30, 5]]\n")
+    world = load_world(path)
+    assert world.name == "mine"  # no `name`: the file's stem
+    assert (world.width, world.height) == (40.0, 30.0)
+    assert world.walls.tolist() == [[0, 10, 20.5, 10], [30, 30, 30, 5]]
+    assert world.segments[:4].tolist() == [[0, 0, 40, 0], [40, 0, 40, 30], [40, 30, 0, 30],
+                                           [0, 30, 0, 0]]  # fmt: skip
+    assert world_from_dict(world.to_dict()) == world
+
+
+def test_oblique_walls_are_accepted():
+    world = world_from_dict({"size": 50, "walls": [[5, 5, 20, 30], [49.5, 0.5, 30, 45]]})
+    assert world.walls.shape == (2, 4)
+    assert world.to_dict() == {
+        "name": "<dict>",
+        "size": [50.0, 50.0],
+        "walls": [[5.0, 5.0, 20.0, 30.0], [49.5, 0.5, 30.0, 45.0]],
+    }
+
+
+@pytest.mark.parametrize("case", sorted(BAD_WORLD_FILES))
+def test_bad_world_file_is_refused_naming_file_and_problem(tmp_path, case):
+    text, problem = BAD_WORLD_FILES[case]
+    path = tmp_path / f"{case}.toml"
+    path.write_text(text)
+    with pytest.raises(InputError) as info:
+        load_world(path)
+    message = str(info.value)
+    assert "\n" not in message
+    assert str(path) in message
+    assert problem in message
+
+
+def test_missing_world_file_and_folder_and_unknown_name(tmp_path):
+    with pytest.raises(InputError, match="world file not found"):
+        load_world(tmp_path / "nope.toml")
+    with pytest.raises(InputError, match="is a folder"):
+        load_world(tmp_path)
+    with pytest.raises(InputError, match=r"unknown world 'mars'.*square, rooms1, rooms2"):
+        load_world("mars")
+
+
+def test_binary_world_file_is_refused(tmp_path):
+    path = tmp_path / "bin.toml"
+    path.write_bytes(b"\xff\xfe\x00size")
+    with pytest.raises(InputError, match=r"bin\.toml"):
+        load_world(path)
+
+
+def test_point_segment_distance_by_hand():
+    segments = np.array([[0.0, 0.0, 10.0, 0.0], [0.0, 0.0, 3.0, 4.0]])
+    d = point_segment_distance(segments, np.array([5.0, -3.0, 13.0]), np.array([2.0, 0.0, 4.0]))
+    # (5, 2): 2 above the first; its projection on the second (3, 4)/5 is u = 23/25 -> beyond no
+    # end, distance |cross| / 5 = |5*4 - 2*3| / 5 = 2.8.
+    np.testing.assert_allclose(d[0], [2.0, 2.8])
+    # (-3, 0): before both starts -> distance to (0, 0) = 3.
+    np.testing.assert_allclose(d[1], [3.0, 3.0])
+    # (13, 4): beyond both ends -> to (10, 0) is 5, to (3, 4) is 10.
+    np.testing.assert_allclose(d[2], [5.0, 10.0])
+
+
+@pytest.mark.parametrize("name", BUILTIN_WORLDS)
+def test_free_start_cells_keep_their_distance(name):
+    world = load_world(name)
+    cells = free_start_cells(world)
+    assert len(cells) > 1000
+    dist = point_segment_distance(world.segments, cells[:, 0], cells[:, 1]).min(axis=1)
+    assert dist.min() >= 1.0
