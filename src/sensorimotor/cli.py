@@ -345,6 +345,31 @@ def analyze(
     err_console.print("wrote " + ", ".join(str(p) for p in result.files), soft_wrap=True)
 
 
+@app.command()
+def reproduce(
+    scale: Annotated[str, typer.Option(help="smoke (about a minute), quick (minutes) or paper (the full protocol).")] = "quick",
+    out: Annotated[Path, typer.Option(help="Output folder (cached stages are reused).")] = Path("runs/reproduce"),
+    seeds: Annotated[int | None, typer.Option(help="Seeds per model and world (default: the scale's).")] = None,
+    device: Annotated[str, typer.Option(help="auto, cpu or cuda.")] = "cpu",
+    workers: Annotated[int | None, typer.Option(help="Parallel worker processes (default: the number of cores).")] = None,
+) -> None:
+    """Reproduce the paper: databases, the four models on the three worlds, Table I, the analysis, a report."""
+    from sensorimotor.parallel import default_workers
+    from sensorimotor.reproduce import reproduce as reproduce_all
+
+    rep = reproduce_all(
+        out, scale, seeds, device, workers if workers is not None else default_workers(),
+        log=err_console.print, argv=sys.argv,
+    )
+    t = rep.table
+    holds = t["paper_ordering_holds"].get("square", {})
+    err_console.print(
+        f"done in {rep.timings['total']['seconds']:.0f} s: {rep.out / 'report.html'} and "
+        f"{rep.out / 'report.md'}; paper ordering on Square-trained models: "
+        + ", ".join(f"{w} {'holds' if v else 'fails'}" for w, v in holds.items() if v is not None)
+    )
+
+
 def version_callback(value: bool) -> None:
     if value:
         print(f"sensorimotor {__version__}")

@@ -24,9 +24,14 @@ def paper_ordering_holds(cells: dict[str, float]) -> bool | None:
 
 def build_table(runs: list[Run], dbs: list[Database], split: str = "test") -> dict:
     """Evaluate every run on every database: JSON-ready tables, one per training world."""
-    worlds = [db.meta["world"]["name"] for db in dbs]
     per_run = [evaluate_run(run, dbs, split) for run in runs]
     base = {db.meta["world"]["name"]: baselines(db, split) for db in dbs}
+    return table_from_results(per_run, base, [db.meta["world"]["name"] for db in dbs])
+
+
+def table_from_results(per_run: list[dict], base: dict, worlds: list[str]) -> dict:
+    """Gather ``evaluate_run`` results into Table I: one table per training world, one row per
+    model, one cell per test world with mean and sample sd over seeds."""
     tables: dict[str, list[dict]] = {}
     ordering: dict[str, dict[str, bool | None]] = {}
     for trained_on in dict.fromkeys(r["trained_on"] for r in per_run):

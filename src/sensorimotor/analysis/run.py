@@ -169,6 +169,15 @@ def analyze_files(
         "analysis": result.metrics,
         "fit_analysis": None if source is None else source.metrics,
     }
+    arrays = out / "pca.npz"  # what a report needs to redraw Fig. 4 beside other models
+    with atomic_path(arrays, ".npz") as tmp, open(tmp, "wb") as f:
+        np.savez(
+            f,
+            pc=result.pc.astype(np.float32),
+            min_reading=part.sensors.min(axis=1).astype(np.float32),
+            labels=result.labels.astype(np.int16),
+        )
+    files.append(arrays)
     path = out / "metrics.json"
     with atomic_path(path, ".json") as tmp:
         tmp.write_text(json.dumps(metrics, indent=2) + "\n")

@@ -1,0 +1,160 @@
+"""Independent jobs (trainings, analyses) in worker processes, one torch thread each.
+
+Tiny models train fastest one thread per process (two threads in one process are slower), so
+the way to use a machine's cores is one worker per core. Workers report progress through a
+queue; the parent prints it in one place. A worker dies with its parent (Linux), so a killed
+run never leaves orphans writing into the folders a rerun will use.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+import queue as queue_mod
+import signal
+import threading
+from collections.abc import Callable
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import dataclass, field
+from typing import Any
+
+_progress_queue = None  # set in each worker by _init_worker
+
+
+@dataclass(frozen=True)
+class Job:
+    """One unit of work: ``fn(*args)`` run in a worker; ``name`` says what it is (a run name)."""
+
+    name: str
+    fn: Callable[..., Any]
+    args: tuple = field(default=())
+
+
+@dataclass(frozen=True)
+class JobFailure:
+    """What a failed job raised, kept so that the other jobs can finish."""
+
+    name: str
+    error: BaseException
+
+
+def report(name: str, message: str) -> None:
+    """Send a progress line from inside a job to the parent (printed there), or drop it."""
+    if _progress_queue is not None:
+        _progress_queue.put((name, message))
+
+
+def _die_with_parent() -> None:
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL("libc.so.6", use_errno=True)
+        libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
+def _init_worker(progress_queue, threads: int) -> None:
+    global _progress_queue
+    _progress_queue = progress_queue
+    _die_with_parent()
+    import torch
+
+    torch.set_num_threads(threads)
+
+
+def run_jobs(
+    jobs: list[Job],
+    workers: int,
+    on_progress: Callable[[str, str], None] | None = None,
+    on_done: Callable[[str, Any], None] | None = None,
+    threads: int = 1,
+) -> tuple[dict[str, Any], list[JobFailure]]:
+    """Run every job, ``workers`` at a time; returns (results by name, failures).
+
+    With ``workers == 1`` the jobs run in this process, in order. A failing job does not stop
+    the others: its exception is returned, for the caller to name.
+    """
+    global _progress_queue
+    results: dict[str, Any] = {}
+    failures: list[JobFailure] = []
+    if workers <= 1 or len(jobs) <= 1:
+        import torch
+
+        before, old_queue = torch.get_num_threads(), _progress_queue
+        torch.set_num_threads(threads)
+        _progress_queue = _ListQueue(on_progress)
+        try:
+            for job in jobs:
+                try:
+                    results[job.name] = job.fn(*job.args)
+                    if on_done is not None:
+                        on_done(job.name, results[job.name])
+                except Exception as err:
+                    failures.append(JobFailure(job.name, err))
+        finally:
+            _progress_queue = old_queue
+            torch.set_num_threads(before)
+        return results, failures
+
+    ctx = mp.get_context("spawn")
+    progress_queue = ctx.Queue()
+    stop = threading.Event()
+
+    def pump() -> None:
+        while not stop.is_set():
+            try:
+                name, message = progress_queue.get(timeout=0.1)
+            except queue_mod.Empty:
+                continue
+            if on_progress is not None:
+                on_progress(name, message)
+
+    printer = threading.Thread(target=pump, daemon=True)
+    printer.start()
+    try:
+        with ProcessPoolExecutor(
+            max_workers=min(workers, len(jobs)),
+            mp_context=ctx,
+            initializer=_init_worker,
+            initargs=(progress_queue, threads),
+        ) as pool:
+            pending = {pool.submit(job.fn, *job.args): job for job in jobs}
+            while pending:
+                done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for future in done:
+                    job = pending.pop(future)
+                    try:
+                        results[job.name] = future.result()
+                        if on_done is not None:
+                            on_done(job.name, results[job.name])
+                    except Exception as err:
+                        failures.append(JobFailure(job.name, err))
+    finally:
+        stop.set()
+        printer.join()
+        while True:  # flush what is left
+            try:
+                name, message = progress_queue.get_nowait()
+            except (queue_mod.Empty, OSError, ValueError):
+                break
+            if on_progress is not None:
+                on_progress(name, message)
+    return results, failures
+
+
+class _ListQueue:
+    """In-process stand-in for the progress queue: calls the printer at once."""
+
+    def __init__(self, on_progress):
+        self.on_progress = on_progress
+
+    def put(self, item) -> None:
+        if self.on_progress is not None:
+            self.on_progress(*item)
+
+
+def default_workers() -> int:
+    return max(
+        1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    )

@@ -1,0 +1,524 @@
+"""The reproduction's report: one Markdown file and one self-contained HTML file.
+
+The report is a list of blocks (headings, paragraphs, tables, images) rendered twice, so the two
+files always say the same thing. Every number in it is read from the stages' outputs.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from sensorimotor.data import atomic_path
+from sensorimotor.models import MODEL_KINDS, MODEL_NAMES
+from sensorimotor.tables import PAPER_TABLE_I
+
+PCA_ORDER = ("raw", "s", "rec-s", "sm", "rec-sm")  # the panels of paper Fig. 4, left to right
+LABEL = {"raw": "Sensory (raw readings)", **MODEL_NAMES}
+
+
+@dataclass(frozen=True)
+class Block:
+    kind: str  # "h1" | "h2" | "h3" | "p" | "table" | "image" | "code"
+    content: object
+
+
+def h(level: int, text: str) -> Block:
+    return Block(f"h{level}", text)
+
+
+def p(text: str) -> Block:
+    return Block("p", text)
+
+
+def table(header: list[str], rows: list[list[str]]) -> Block:
+    return Block("table", (header, rows))
+
+
+def image(path: Path, caption: str) -> Block:
+    return Block("image", (path, caption))
+
+
+def to_markdown(blocks: list[Block], root: Path) -> str:
+    out = []
+    for b in blocks:
+        if b.kind.startswith("h"):
+            out.append("#" * int(b.kind[1]) + " " + str(b.content))
+        elif b.kind == "p":
+            out.append(str(b.content))
+        elif b.kind == "code":
+            out.append(f"```\n{b.content}\n```")
+        elif b.kind == "table":
+            header, rows = b.content
+            out.append("| " + " | ".join(header) + " |")
+            out[-1] += "\n|" + "|".join("---" for _ in header) + "|"
+            for row in rows:
+                out[-1] += "\n| " + " | ".join(row) + " |"
+        elif b.kind == "image":
+            path, caption = b.content
+            out.append(f"![{caption}]({path.relative_to(root).as_posix()})\n\n*{caption}*")
+    return "\n\n".join(out) + "\n"
+
+
+def _inline_md(text: str) -> str:
+    """Escape, then the two bits of Markdown the report uses inline: **bold** and `code`."""
+    import re
+
+    text = html.escape(text)
+    text = re.sub(r"\*\*(.+?)\*\*", r"<b>\1</b>", text)
+    return re.sub(r"`(.+?)`", r"<code>\1</code>", text)
+
+
+def to_html(blocks: list[Block], title: str) -> str:
+    body = []
+    for b in blocks:
+        if b.kind.startswith("h"):
+            body.append(f"<{b.kind}>{html.escape(str(b.content))}</{b.kind}>")
+        elif b.kind == "p":
+            body.append(f"<p>{_inline_md(str(b.content))}</p>")
+        elif b.kind == "code":
+            body.append(f"<pre>{html.escape(str(b.content))}</pre>")
+        elif b.kind == "table":
+            header, rows = b.content
+            head = "".join(f"<th>{_inline_md(c)}</th>" for c in header)
+            trs = "".join(
+                "<tr>" + "".join(f"<td>{_inline_md(c)}</td>" for c in r) + "</tr>" for r in rows
+            )
+            body.append(f"<table><thead><tr>{head}</tr></thead><tbody>{trs}</tbody></table>")
+        elif b.kind == "image":
+            path, caption = b.content
+            data = base64.b64encode(Path(path).read_bytes()).decode()
+            body.append(
+                f'<figure><img src="data:image/png;base64,{data}" alt="{html.escape(caption)}">'
+                f"<figcaption>{html.escape(caption)}</figcaption></figure>"
+            )
+    style = (
+        "body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;"
+        "color:#222}table{border-collapse:collapse;margin:1em 0;font-size:0.9em}"
+        "td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#f4f4f4}"
+        "td:first-child,th:first-child{text-align:left}img{max-width:100%}"
+        "figure{margin:1em 0}figcaption{font-style:italic;color:#555}"
+        "pre{background:#f6f6f6;padding:0.8em;overflow-x:auto}"
+    )
+    return (
+        f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
+        f"<style>{style}</style></head><body>{''.join(body)}</body></html>\n"
+    )
+
+
+# --- numbers -----------------------------------------------------------------------------------
+
+
+def fmt_cell(cell: dict | None, digits: int = 5) -> str:
+    if cell is None:
+        return ""
+    if cell["n"] > 1:
+        return f"{cell['mean']:.{digits}f} ± {cell['sd']:.{digits}f}"
+    return f"{cell['mean']:.{digits}f}"
+
+
+def _mean_sd(values: list[float]) -> tuple[float, float]:
+    values = [v for v in values if v is not None and not math.isnan(v)]
+    if not values:
+        return math.nan, math.nan
+    a = np.asarray(values, dtype=float)
+    return float(a.mean()), float(a.std(ddof=1)) if len(a) > 1 else 0.0
+
+
+def fmt_ms(values: list[float], digits: int = 2) -> str:
+    mean, sd = _mean_sd(values)
+    if math.isnan(mean):
+        return "n/a"
+    return f"{mean:.{digits}f}" + (
+        f" ± {sd:.{digits}f}" if len([v for v in values if v is not None]) > 1 else ""
+    )
+
+
+def claim_numbers(analyses: dict[str, dict], runs: list[tuple[str, str, int]], worlds) -> dict:
+    """Per training world and model (and raw): the lists over seeds of each claim number."""
+    out: dict[str, dict[str, dict[str, list]]] = {}
+    for world in worlds:
+        out[world] = {}
+        names = {"raw": [f"raw__{world}"]}
+        for kind in MODEL_KINDS:
+            names[kind] = [f"{w}__{m}__s{s}" for w, m, s in runs if w == world and m == kind]
+        for kind, keys in names.items():
+            vals: dict[str, list] = {
+                k: []
+                for k in (
+                    "corner_f1",
+                    "wall_end_f1",
+                    "nothing_clusters",
+                    "behind_r2",
+                    "r2_x",
+                    "r2_y",
+                    "r2_cos",
+                    "knn_mse",
+                )
+            }
+            for key in keys:
+                a = analyses[key]["analysis"]
+                ev = a["events"]
+                vals["corner_f1"].append(ev.get("corner", {}).get("f1"))
+                vals["wall_end_f1"].append(ev.get("wall_end", {}).get("f1"))
+                vals["nothing_clusters"].append(a["memory"]["nothing_clusters"])
+                vals["behind_r2"].append(a["memory"]["distance_behind_r2"])
+                pos = a["position"]
+                vals["r2_x"].append(pos["r2_x"])
+                vals["r2_y"].append(pos["r2_y"])
+                vals["r2_cos"].append(pos["r2_cos_heading"])
+                vals["knn_mse"].append(pos["knn_mse"])
+            out[world][kind] = vals
+    return out
+
+
+def _m(values: list) -> float:
+    return _mean_sd(values)[0]
+
+
+def paper_claims(rep, numbers: dict) -> list[tuple[str, str, bool | None]]:
+    """Each of the paper's claims, the numbers that test it, and whether they support it."""
+    claims = []
+    t = rep.table
+    sq = t["paper_ordering_holds"].get("square", {})
+    holds = [v for v in sq.values() if v is not None]
+    claims.append(
+        (
+            "Table I ordering (trained on Square): Rec-SM < SM < both Rec-S and S, in every test world",
+            ", ".join(f"{w}: {'holds' if v else 'fails'}" for w, v in sq.items() if v is not None),
+            all(holds) if holds else None,
+        )
+    )
+    n = numbers["square"]
+    corner = {k: _m(n[k]["corner_f1"]) for k in ("raw", "s", "sm", "rec-s", "rec-sm")}
+    claims.append(
+        (
+            "Motors grow a corner cluster: the best cluster's corner F1 of SM and Rec-SM exceeds that "
+            "of S and of the raw readings by at least 0.1 (Square)",
+            ", ".join(f"{LABEL[k].split(' ')[0]} {v:.2f}" for k, v in corner.items()),
+            min(corner["sm"], corner["rec-sm"]) >= max(corner["s"], corner["raw"]) + 0.1,
+        )
+    )
+    claims.append(
+        (
+            "No corner cluster without motors: Rec-S's corner F1 stays below SM's and Rec-SM's (Square)",
+            f"Rec-S {corner['rec-s']:.2f}, SM {corner['sm']:.2f}, Rec-SM {corner['rec-sm']:.2f}",
+            corner["rec-s"] < min(corner["sm"], corner["rec-sm"]),
+        )
+    )
+    mem = {
+        k: (_m(n[k]["nothing_clusters"]), _m(n[k]["behind_r2"])) for k in ("s", "rec-s", "rec-sm")
+    }
+    claims.append(
+        (
+            "Memory: Rec-SM splits the 'nothing in view' states (several such clusters, distance to the "
+            "wall behind decodable) where S cannot (Square)",
+            ", ".join(
+                f"{LABEL[k].split(' ')[0]}: {c:.1f} clusters, R² {r:.2f}"
+                for k, (c, r) in mem.items()
+            ),
+            mem["rec-sm"][0] > 1 and mem["rec-sm"][1] > mem["s"][1] + 0.1,
+        )
+    )
+    claims.append(
+        (
+            "Motors sharpen memory: Rec-SM tells 'nothing in view' states apart better than Rec-S "
+            "(distance-behind R², Square)",
+            f"Rec-SM {mem['rec-sm'][1]:.2f}, Rec-S {mem['rec-s'][1]:.2f}",
+            mem["rec-sm"][1] > mem["rec-s"][1],
+        )
+    )
+    if "rooms1" in numbers and "rooms2" in numbers:
+        e1 = _m(numbers["rooms1"]["rec-sm"]["wall_end_f1"])
+        e2 = _m(numbers["rooms2"]["rec-sm"]["wall_end_f1"])
+        raw1 = _m(numbers["rooms1"]["raw"]["wall_end_f1"])
+        claims.append(
+            (
+                "A wall-end cluster grows when Rec-SM is trained on Rooms1 (F1 above the raw readings' "
+                "by 0.1) but not on Rooms2 (F1 lower than on Rooms1)",
+                f"Rooms1 {e1:.2f} (raw {raw1:.2f}), Rooms2 {e2:.2f}",
+                e1 >= raw1 + 0.1 and e2 < e1,
+            )
+        )
+    tr = rep.transfers
+    key = "square__rec-sm__s0"
+    if f"{key}__to__rooms1" in tr:
+        fit_f1 = tr[f"{key}__to__rooms1"]["fit_analysis"]["events"]["corner"]["f1"]
+        to = {
+            w: tr[f"{key}__to__{w}"]["analysis"]["events"]["corner"]["f1"]
+            for w in ("rooms1", "rooms2")
+        }
+        claims.append(
+            (
+                "Transfer: Square's corner cluster still finds corners in Rooms1 and Rooms2 (F1 at least "
+                "half of that on Square)",
+                f"Square {fit_f1:.2f}, Rooms1 {to['rooms1']:.2f}, Rooms2 {to['rooms2']:.2f}",
+                min(to.values()) >= 0.5 * fit_f1,
+            )
+        )
+    return claims
+
+
+# --- figures -------------------------------------------------------------------------------------
+
+
+def _figures(rep) -> dict[str, Path]:
+    from sensorimotor.analysis_plots import plot_pca
+    from sensorimotor.data import load_database
+    from sensorimotor.plots import (
+        perception_figure,
+        save_figure,
+        trajectories_figure,
+        worlds_figure,
+    )
+
+    figs: dict[str, Path] = {}
+    folder = rep.out / "figures"
+    dbs = {w: load_database(p) for w, p in rep.data.items()}
+    figs["worlds"] = save_figure(
+        worlds_figure([db.world for db in dbs.values()]), folder / "worlds.png"
+    )[0]
+    figs["trajectories"] = save_figure(
+        trajectories_figure(list(dbs.values())), folder / "trajectories.png"
+    )[0]
+    situation_db = dbs.get("rooms1", next(iter(dbs.values())))
+    figs["perception"] = save_figure(perception_figure(situation_db), folder / "perception.png")[0]
+
+    from matplotlib.figure import Figure
+
+    for world in rep.data:
+        panels = [("raw", rep.out / "analysis" / f"raw__{world}")] + [
+            (k, rep.out / "analysis" / f"{world}__{k}__s0") for k in PCA_ORDER[1:]
+        ]
+        fig = Figure(figsize=(3.2 * len(panels), 3.2), layout="constrained")
+        axes = fig.subplots(1, len(panels))
+        for ax, (kind, folder_k) in zip(axes, panels, strict=True):
+            with np.load(folder_k / "pca.npz", allow_pickle=False) as z:
+                plot_pca(
+                    z["pc"], z["min_reading"], ax=ax, title=LABEL[kind], colorbar=ax is axes[-1]
+                )
+        figs[f"pca_{world}"] = save_figure(fig, folder / f"pca_{world}.png")[0]
+    return figs
+
+
+def write_report(rep, argv: list[str], hardware: dict) -> tuple[Path, Path]:
+    """Write ``report.md`` and ``report.html`` into ``rep.out``."""
+    figs = _figures(rep)
+    out = rep.out
+    worlds = list(rep.data)
+    b: list[Block] = [h(1, "sensorimotor: reproduction report")]
+    b.append(
+        p(
+            "Kulak & Garcia Ortiz, *Representation Learning in Partially Observable Environments using "
+            "Sensorimotor Prediction*: databases, the four encoders, Table I and the analysis of the "
+            "representations, regenerated by one command."
+        )
+    )
+    b.append(
+        Block("code", " ".join(["sensorimotor", *argv[1:]]) if argv else "sensorimotor reproduce")
+    )
+    b.append(
+        table(
+            ["", ""],
+            [
+                ["scale", f"{rep.scale.name} ({rep.scale.steps:,} steps per world)"],
+                ["seeds", f"{rep.seeds} (0..{rep.seeds - 1}) per model and training world"],
+                [
+                    "epoch caps",
+                    ", ".join(f"{k}: {v}" for k, v in rep.scale.max_epochs.items())
+                    or "none (early stopping alone)",
+                ],
+                ["device / workers", f"{rep.device} / {rep.workers}"],
+                ["package", hardware["sensorimotor"]],
+                [
+                    "hardware",
+                    f"{hardware['processor']}, {hardware['cpus']} CPUs"
+                    + (f", {hardware['cuda']}" if hardware["cuda"] else ""),
+                ],
+                [
+                    "software",
+                    f"Python {hardware['python']}, torch {hardware['torch']}, {hardware['platform']}",
+                ],
+            ],
+        )
+    )
+    rows = []
+    for stage, t in rep.timings.items():
+        if stage == "total":
+            continue
+        extra = f"{t.get('jobs', 0)} run, {t.get('cached', 0)} cached" if "jobs" in t else ""
+        rows.append([stage, f"{t.get('seconds', 0.0):.1f}", extra])
+    rows.append(["total", f"{rep.timings.get('total', {}).get('seconds', 0.0):.1f}", ""])
+    b += [
+        h(3, "Wall time of each stage (this invocation)"),
+        table(["stage", "seconds", "jobs"], rows),
+    ]
+
+    b.append(h(2, "Worlds, behaviour and perception (paper Figs. 1-3)"))
+    b.append(image(figs["worlds"], "The three worlds (Fig. 1)"))
+    b.append(
+        image(figs["trajectories"], "10,000 steps of the random wall-avoiding behaviour (Fig. 2)")
+    )
+    b.append(
+        image(
+            figs["perception"],
+            "What the agent perceives in the five situations, picked from the Rooms1 database by pose (Fig. 3)",
+        )
+    )
+
+    b.append(h(2, "Table I: sensorimotor prediction error"))
+    b.append(
+        p(
+            "Test-split error: per step the squared error summed over the 5 scaled sensors, averaged "
+            "over steps (the paper's Eq. 1). Recurrent models run over the whole test split from a zero "
+            "state. Mean ± sample sd over seeds; the paper's value (trained on Square) in brackets. "
+            "Baselines: predict the train-split mean reading; copy the last reading."
+        )
+    )
+    t = rep.table
+    for trained_on, rows_t in t["tables"].items():
+        header = ["model"] + [w for w in t["worlds"]]
+        body = []
+        for row in rows_t:
+            cells = [row["name"]]
+            for w in t["worlds"]:
+                c = fmt_cell(row["cells"].get(w))
+                paper = (
+                    PAPER_TABLE_I.get(row["model"], {}).get(w) if trained_on == "square" else None
+                )
+                cells.append(c + (f" [{paper:g}]" if paper is not None else ""))
+            body.append(cells)
+        for name in ("mean", "copy_last"):
+            body.append(
+                [f"baseline: {name.replace('_', '-')}"]
+                + [f"{t['baselines'][w][name]:.5f}" for w in t["worlds"]]
+            )
+        order = t["paper_ordering_holds"][trained_on]
+        body.append(
+            ["paper ordering holds"]
+            + [
+                "yes" if order[w] else ("no" if order[w] is not None else "n/a")
+                for w in t["worlds"]
+            ]
+        )
+        b += [h(3, f"Trained on {trained_on}"), table(header, body)]
+
+    numbers = claim_numbers(rep.analyses, rep.runs, worlds)
+    b.append(h(2, "Inside the representations (paper Figs. 4-9)"))
+    b.append(
+        p(
+            "z_s of each model on its training world's test split. Events are computed from pose and "
+            "walls: a corner or a free wall end inside the sensor fan within range 10 and in line of "
+            "sight; nothing in view (all readings 10); the distance to the wall straight behind. "
+            "Event F1: the best single k-means cluster (k = 20) as a detector of the event. Memory: "
+            "clusters that are mostly 'nothing in view', and the R² of a ridge probe for the distance "
+            "behind among 'nothing in view' steps (fit on one half, scored on the other). Position: R² "
+            "of ridge probes for x, y, cos(heading); KNN-MSE of the normalised position among the 5 "
+            "nearest neighbours in representation space (lower is better). Mean ± sd over seeds."
+        )
+    )
+    for world in worlds:
+        body = []
+        for kind in ("raw", *MODEL_KINDS):
+            v = numbers[world][kind]
+            body.append(
+                [
+                    LABEL[kind],
+                    fmt_ms(v["corner_f1"]),
+                    fmt_ms(v["wall_end_f1"]),
+                    fmt_ms(v["nothing_clusters"], 1),
+                    fmt_ms(v["behind_r2"]),
+                    fmt_ms(v["r2_x"]),
+                    fmt_ms(v["r2_y"]),
+                    fmt_ms(v["r2_cos"]),
+                    fmt_ms(v["knn_mse"], 3),
+                ]
+            )
+        b += [
+            h(3, f"Trained and analysed on {world}"),
+            table(
+                [
+                    "representation",
+                    "corner F1",
+                    "wall-end F1",
+                    "nothing clusters",
+                    "behind R²",
+                    "x R²",
+                    "y R²",
+                    "cos R²",
+                    "KNN-MSE",
+                ],
+                body,
+            ),
+        ]
+        b.append(
+            image(
+                figs[f"pca_{world}"],
+                f"PCA of z_s on {world}, coloured by the smallest reading (Fig. 4; seed 0)",
+            )
+        )
+
+    b.append(h(3, "Cluster maps (seed 0): 500 steps of each cluster, arrows at true pose"))
+    shown = [
+        ("raw", "square"),
+        ("s", "square"),
+        ("sm", "square"),
+        ("rec-s", "square"),
+        ("rec-sm", "square"),
+        ("rec-sm", "rooms1"),
+        ("rec-sm", "rooms2"),
+    ]
+    for kind, world in shown:
+        name = f"raw__{world}" if kind == "raw" else f"{world}__{kind}__s0"
+        path = out / "analysis" / name / "clusters.png"
+        if path.exists():
+            b.append(image(path, f"{LABEL[kind]} trained on {world}: the 20 clusters"))
+
+    b.append(h(3, "Transfer: Rec-SM and its clusters fitted on one world, applied to another"))
+    body = []
+    for m in rep.transfers.values():
+        src, dst = m["fit_analysis"]["world"], m["analysis"]["world"]
+        ev_fit, ev = m["fit_analysis"]["events"], m["analysis"]["events"]
+        body.append(
+            [
+                f"{src} → {dst}",
+                *(
+                    f"{ev_fit[e]['f1']:.2f} → {ev[e]['f1']:.2f}"
+                    if e in ev and e in ev_fit
+                    else (f"– → {ev[e]['f1']:.2f}" if e in ev else "–")
+                    for e in ("corner", "wall_end", "nothing")
+                ),
+            ]
+        )
+    b.append(table(["fitted → applied", "corner F1", "wall-end F1", "nothing F1"], body))
+    for name in rep.transfers:
+        path = out / "transfer" / name / "clusters.png"
+        b.append(
+            image(
+                path,
+                f"{name.replace('__', ' ')}: clusters fitted on the training world drawn on the other",
+            )
+        )
+
+    b.append(h(2, "The paper's claims, tested"))
+    rows_c = [
+        [c, nums, "supported" if ok else ("not supported" if ok is not None else "n/a")]
+        for c, nums, ok in paper_claims(rep, numbers)
+    ]
+    b.append(table(["claim", "numbers", "verdict"], rows_c))
+
+    md = to_markdown(b, out)
+    page = to_html(b, "sensorimotor reproduction report")
+    with atomic_path(out / "report.md", ".md") as tmp:
+        tmp.write_text(md)
+    with atomic_path(out / "report.html", ".html") as tmp:
+        tmp.write_text(page)
+    with atomic_path(out / "claims.json", ".json") as tmp:
+        tmp.write_text(json.dumps({"numbers": numbers, "claims": rows_c}, indent=2))
+    return out / "report.md", out / "report.html"

@@ -1,0 +1,389 @@
+"""``sensorimotor reproduce``: the whole paper, and the full 3 x 3 table, from one command.
+
+Stages, each cached under ``OUT`` by a hash of what it depends on (a rerun does only what is
+missing; a killed run resumes, losing nothing finished):
+
+    data      OUT/data/{world}.npz                     one database per world
+    train     OUT/runs/{world}__{model}__s{seed}/      every model on every world, K seeds
+    evaluate  OUT/eval/{run}.json                      each run on the three test splits
+    analyze   OUT/analysis/{run}/, OUT/analysis/raw__{world}/, OUT/transfer/{run}__to__{world}/
+    report    OUT/report.md, OUT/report.html           Table I, figures, the paper's claims
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import platform
+import shutil
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+from sensorimotor import __version__
+from sensorimotor.data import atomic_path, file_hash
+from sensorimotor.errors import InputError
+from sensorimotor.models import MODEL_KINDS
+from sensorimotor.parallel import Job, report, run_jobs
+
+WORLDS = ("square", "rooms1", "rooms2")
+TRANSFER_FROM = ("square", "rooms1")  # paper Figs. 8-9: Rec-SM clusters carried to other worlds
+
+
+@dataclass(frozen=True)
+class Scale:
+    """How big a reproduction is."""
+
+    name: str
+    steps: int
+    """Rows of each world's database (the paper: 1,000,000)."""
+    seeds: int
+    """Default number of seeds per model and world."""
+    max_epochs: dict[str, int | None] = field(default_factory=dict)
+    """Cap on epochs per model kind (missing or None: early stopping alone)."""
+
+
+SCALES = {
+    "smoke": Scale("smoke", 20_000, 1, {k: 2 for k in MODEL_KINDS}),
+    "quick": Scale("quick", 200_000, 1, {"s": 12, "sm": 12, "rec-s": 25, "rec-sm": 25}),
+    "paper": Scale("paper", 1_000_000, 5, {}),
+}
+
+
+def stage_key(obj) -> str:
+    """A short stable hash of a JSON-able description of a stage's inputs."""
+    return hashlib.sha256(json.dumps(obj, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def _read_key(path: Path) -> str | None:
+    try:
+        return json.loads(path.read_text())["key"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def _write_json(path: Path, obj) -> None:
+    with atomic_path(path, ".json") as tmp:
+        tmp.write_text(json.dumps(obj, indent=2) + "\n")
+
+
+# --- jobs (top-level functions: they run in worker processes) --------------------------------
+
+
+def _data_job(world: str, steps: int, seed: int, path: str, key: str) -> str:
+    from sensorimotor.data import generate, save_database
+    from sensorimotor.world import load_world
+
+    save_database(generate(load_world(world), steps, seed), path)
+    _write_json(Path(path).with_suffix(".json"), {"key": key})
+    return path
+
+
+def _train_job(data: str, run_dir: str, config: dict, key: str) -> dict:
+    from sensorimotor.train import TrainConfig, train
+
+    run = Path(run_dir)
+    stage = run / "stage.json"
+    if run.exists() and _read_key(stage) != key:
+        shutil.rmtree(run)  # made from other inputs: start again
+    name = run.name
+
+    def on_epoch(r, stopper) -> None:
+        report(
+            name,
+            f"epoch {r.epoch:3d} val {r.val_error:.5f} (best {stopper.lowest:.5f}) "
+            f"{r.samples_per_s / 1e3:.0f} k samples/s",
+        )
+
+    result = train(data, run, TrainConfig(**config), resume=True, on_epoch=on_epoch)
+    _write_json(stage, {"key": key})
+    report(
+        name,
+        f"done: {result.stopped} after {result.epochs} epochs, best val "
+        f"{result.best_val_error:.5f}",
+    )
+    return {"epochs": result.epochs, "best_val_error": result.best_val_error}
+
+
+def _eval_job(run_dir: str, data: list[str], out: str, key: str) -> dict:
+    from sensorimotor.data import load_database
+    from sensorimotor.evaluate import evaluate_run, load_run
+
+    res = evaluate_run(load_run(run_dir), [load_database(p) for p in data])
+    _write_json(Path(out), {"key": key, "result": res})
+    return res
+
+
+def _analysis_job(run: str, data: str, out: str, fit_data: str | None, key: str) -> dict:
+    from sensorimotor.analysis import analyze_files
+
+    res = analyze_files(run, data, out, fit_data=fit_data)
+    _write_json(Path(out) / "stage.json", {"key": key})
+    return res.metrics
+
+
+# --- the pipeline ------------------------------------------------------------------------------
+
+
+@dataclass
+class Reproduction:
+    """Where a reproduction lives and what it has found so far."""
+
+    out: Path
+    scale: Scale
+    seeds: int
+    device: str
+    workers: int
+    timings: dict[str, dict] = field(default_factory=dict)
+    data: dict[str, Path] = field(default_factory=dict)
+    runs: list[tuple[str, str, int]] = field(default_factory=list)  # (world, model, seed)
+    table: dict = field(default_factory=dict)
+    analyses: dict[str, dict] = field(default_factory=dict)
+    transfers: dict[str, dict] = field(default_factory=dict)
+
+    def run_name(self, world: str, model: str, seed: int) -> str:
+        return f"{world}__{model}__s{seed}"
+
+    def run_dir(self, world: str, model: str, seed: int) -> Path:
+        return self.out / "runs" / self.run_name(world, model, seed)
+
+
+def _stage(rep: Reproduction, name: str, log: Callable[[str], None]):
+    """Context manager timing one stage into ``rep.timings``."""
+
+    class _Timer:
+        def __enter__(self):
+            self.t0 = time.perf_counter()
+            log(f"[bold]stage {name}[/bold]")
+            return self
+
+        def __exit__(self, *exc):
+            rep.timings[name] = {
+                **rep.timings.get(name, {}),
+                "seconds": time.perf_counter() - self.t0,
+            }
+            return False
+
+    return _Timer()
+
+
+def _raise_failures(failures, log) -> None:
+    if not failures:
+        return
+    for f in failures[1:]:
+        log(f"[red]failed: {f.name}: {f.error}")
+    first = failures[0]
+    more = f" (and {len(failures) - 1} more)" if len(failures) > 1 else ""
+    if isinstance(first.error, InputError):
+        raise InputError(f"run {first.name}: {first.error}{more}")
+    raise RuntimeError(f"run {first.name} failed{more}") from first.error
+
+
+def reproduce(
+    out: str | Path,
+    scale: str = "quick",
+    seeds: int | None = None,
+    device: str = "cpu",
+    workers: int = 1,
+    log: Callable[[str], None] = print,
+    argv: list[str] | None = None,
+) -> Reproduction:
+    """Run (or resume) every stage; returns what was found. See the module docstring."""
+    if scale not in SCALES:
+        raise InputError(f"unknown scale {scale!r}: use one of {', '.join(SCALES)}")
+    sc = SCALES[scale]
+    seeds = sc.seeds if seeds is None else seeds
+    if seeds < 1:
+        raise InputError(f"--seeds must be at least 1, got {seeds}")
+    if workers < 1:
+        raise InputError(f"--workers must be at least 1, got {workers}")
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: is a file, not an output folder")
+    try:
+        for sub in ("data", "runs", "eval", "analysis", "transfer", "figures"):
+            (out / sub).mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise InputError(f"{out}: cannot create the output folder ({err.strerror})") from None
+    from sensorimotor.train import resolve_device
+
+    device = resolve_device(device)
+    rep = Reproduction(out, sc, seeds, device, workers)
+    t_start = time.perf_counter()
+
+    def progress(name: str, message: str) -> None:
+        log(f"  {name}: {message}")
+
+    # data ---------------------------------------------------------------------------------
+    with _stage(rep, "data", log):
+        jobs = []
+        for world in WORLDS:
+            path = out / "data" / f"{world}.npz"
+            key = stage_key({"world": world, "steps": sc.steps, "seed": 0, "version": __version__})
+            rep.data[world] = path
+            if path.exists() and _read_key(path.with_suffix(".json")) == key:
+                continue
+            jobs.append(Job(f"data {world}", _data_job, (world, sc.steps, 0, str(path), key)))
+        rep.timings["data"] = {"jobs": len(jobs), "cached": len(WORLDS) - len(jobs)}
+        _, failures = run_jobs(jobs, workers, progress)
+        _raise_failures(failures, log)
+    data_hash = {w: file_hash(p) for w, p in rep.data.items()}
+
+    # train --------------------------------------------------------------------------------
+    with _stage(rep, "train", log):
+        jobs = []
+        for world in WORLDS:
+            for model in MODEL_KINDS:
+                for seed in range(seeds):
+                    rep.runs.append((world, model, seed))
+                    config = {
+                        "model": model,
+                        "seed": seed,
+                        "device": device,
+                        "max_epochs": sc.max_epochs.get(model),
+                    }
+                    key = stage_key({"data": data_hash[world], "config": config})
+                    run = rep.run_dir(world, model, seed)
+                    if (run / "result.json").exists() and _read_key(run / "stage.json") == key:
+                        continue
+                    jobs.append(
+                        Job(run.name, _train_job, (str(rep.data[world]), str(run), config, key))
+                    )
+        rep.timings["train"] = {"jobs": len(jobs), "cached": len(rep.runs) - len(jobs)}
+        log(
+            f"  {len(jobs)} trainings to run, {len(rep.runs) - len(jobs)} cached, {workers} worker(s)"
+        )
+        _, failures = run_jobs(jobs, workers, progress)
+        _raise_failures(failures, log)
+
+    # evaluate -----------------------------------------------------------------------------
+    with _stage(rep, "evaluate", log):
+        jobs, results = [], {}
+        data_list = [str(rep.data[w]) for w in WORLDS]
+        for world, model, seed in rep.runs:
+            run = rep.run_dir(world, model, seed)
+            path = out / "eval" / f"{run.name}.json"
+            key = stage_key({"model": file_hash(run / "model.pt"), "data": data_hash})
+            if _read_key(path) == key:
+                results[run.name] = json.loads(path.read_text())["result"]
+                continue
+            jobs.append(Job(run.name, _eval_job, (str(run), data_list, str(path), key)))
+        rep.timings["evaluate"] = {"jobs": len(jobs), "cached": len(rep.runs) - len(jobs)}
+        new, failures = run_jobs(jobs, workers, progress)
+        _raise_failures(failures, log)
+        results.update(new)
+        from sensorimotor.data import load_database
+        from sensorimotor.evaluate import baselines
+        from sensorimotor.tables import table_from_results
+
+        base = {w: baselines(load_database(rep.data[w])) for w in WORLDS}
+        ordered = [results[rep.run_name(*r)] for r in rep.runs]
+        rep.table = table_from_results(ordered, base, list(WORLDS))
+        _write_json(out / "table1.json", rep.table)
+
+    # analyze ------------------------------------------------------------------------------
+    with _stage(rep, "analyze", log):
+        jobs, cached = [], 0
+        targets: list[tuple[str, str, str, str | None, str]] = []  # name, run, data, fit, out
+        for world in WORLDS:
+            targets.append(
+                (
+                    f"raw__{world}",
+                    "raw",
+                    str(rep.data[world]),
+                    None,
+                    str(out / "analysis" / f"raw__{world}"),
+                )
+            )
+        for world, model, seed in rep.runs:
+            run = rep.run_dir(world, model, seed)
+            targets.append(
+                (run.name, str(run), str(rep.data[world]), None, str(out / "analysis" / run.name))
+            )
+        for world in TRANSFER_FROM:
+            run = rep.run_dir(world, "rec-sm", 0)
+            for target in WORLDS:
+                if target != world:
+                    name = f"{run.name}__to__{target}"
+                    targets.append(
+                        (
+                            name,
+                            str(run),
+                            str(rep.data[target]),
+                            str(rep.data[world]),
+                            str(out / "transfer" / name),
+                        )
+                    )
+        for name, run, data, fit, dest in targets:
+            model_hash = "raw" if run == "raw" else file_hash(Path(run) / "model.pt")
+            key = stage_key(
+                {
+                    "model": model_hash,
+                    "data": file_hash(data),
+                    "fit": None if fit is None else file_hash(fit),
+                    "version": __version__,
+                }
+            )
+            metrics_path = Path(dest) / "metrics.json"
+            if metrics_path.exists() and _read_key(Path(dest) / "stage.json") == key:
+                cached += 1
+                continue
+            jobs.append(Job(name, _analysis_job, (run, data, dest, fit, key)))
+        rep.timings["analyze"] = {"jobs": len(jobs), "cached": cached}
+        _, failures = run_jobs(jobs, workers, progress)
+        _raise_failures(failures, log)
+        for name, _run, _data, fit, dest in targets:
+            metrics = json.loads((Path(dest) / "metrics.json").read_text())
+            (rep.transfers if fit else rep.analyses)[name] = metrics
+
+    # report -------------------------------------------------------------------------------
+    with _stage(rep, "report", log):
+        from sensorimotor.report import write_report
+
+        rep.timings["total"] = {"seconds": time.perf_counter() - t_start}
+        write_report(rep, argv if argv is not None else sys.argv, hardware())
+    rep.timings["total"] = {"seconds": time.perf_counter() - t_start}
+    _write_json(out / "timings.json", rep.timings)
+    return rep
+
+
+def hardware() -> dict:
+    """What the numbers were measured on."""
+    import os
+
+    import torch
+
+    info = {
+        "python": platform.python_version(),
+        "platform": platform.platform(),
+        "processor": _cpu_name(),
+        "cpus": len(os.sched_getaffinity(0))
+        if hasattr(os, "sched_getaffinity")
+        else os.cpu_count(),
+        "torch": torch.__version__,
+        "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
+        "sensorimotor": __version__,
+    }
+    return info
+
+
+def _cpu_name() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
+
+
+def to_dict(rep: Reproduction) -> dict:
+    return {
+        "scale": asdict(rep.scale),
+        "seeds": rep.seeds,
+        "device": rep.device,
+        "workers": rep.workers,
+        "timings": rep.timings,
+    }
