@@ -184,38 +184,41 @@ def table(
 
     from sensorimotor.data import atomic_path, check_writable, load_database
     from sensorimotor.evaluate import load_run
-    from sensorimotor.tables import PAPER_TABLE_I, build_table
+    from sensorimotor.tables import PAPER_TABLE_I, build_table, fmt_cell
 
     if json_out is not None:
         check_writable(json_out)
     runs = [load_run(r) for r in run_dirs]
     dbs = [load_database(p) for p in data]
     result = build_table(runs, dbs)
+    worlds = result["worlds"]
     for trained_on, rows in result["tables"].items():
-        worlds = result["worlds"]
-        t = Table(title=f"Table I: test error of models trained on {trained_on} (mean ± sd over seeds)")
+        paper = trained_on == "square"
+        t = Table(title=f"Table I: test error, trained on {trained_on} (mean ± sd over seeds)")
         t.add_column("model")
         for w in worlds:
             t.add_column(w, justify="right")
-            if trained_on == "square" and w in PAPER_TABLE_I["s"]:
-                t.add_column(f"{w} (paper)", justify="right", style="dim")
+            if paper:
+                t.add_column("paper", justify="right", style="dim")
         for row in rows:
             cells = [row["name"]]
             for w in worlds:
-                c = row["cells"].get(w)
-                cells.append("" if c is None else f"{c['mean']:.5f} ± {c['sd']:.5f} (n={c['n']})")
-                if trained_on == "square" and w in PAPER_TABLE_I["s"]:
-                    p = PAPER_TABLE_I.get(row["model"], {}).get(w)
-                    cells.append("" if p is None else f"{p:.5f}")
+                cells.append(fmt_cell(row["cells"].get(w)))
+                if paper:
+                    value = PAPER_TABLE_I.get(row["model"], {}).get(w)
+                    cells.append("" if value is None else f"{value:g}")
             t.add_row(*cells)
         for name in ("mean", "copy_last"):
-            t.add_row(f"[dim]baseline: {name}", *[
-                x for w in worlds for x in (
-                    [f"[dim]{result['baselines'][w][name]:.5f}"]
-                    + (["" ] if trained_on == "square" and w in PAPER_TABLE_I["s"] else [])
-                )
-            ])
-        Console().print(t)
+            cells = [f"baseline: {name.replace('_', '-')}"]
+            for w in worlds:
+                cells += [f"{result['baselines'][w][name]:.5f}"] + ([""] if paper else [])
+            t.add_row(*cells, style="dim")
+        holds = result["paper_ordering_holds"][trained_on]
+        cells = ["paper ordering"]
+        for w in worlds:
+            cells += [{True: "holds", False: "fails", None: "n/a"}[holds[w]]] + ([""] if paper else [])
+        t.add_row(*cells)
+        Console(width=max(100, Console().width)).print(t)
     if json_out is not None:
         with atomic_path(json_out) as tmp:
             tmp.write_text(json.dumps(result, indent=2))

@@ -17,7 +17,7 @@ import numpy as np
 
 from sensorimotor.data import atomic_path
 from sensorimotor.models import MODEL_KINDS, MODEL_NAMES
-from sensorimotor.tables import PAPER_TABLE_I
+from sensorimotor.tables import PAPER_TABLE_I, fmt_cell
 
 PCA_ORDER = ("raw", "s", "rec-s", "sm", "rec-sm")  # the panels of paper Fig. 4, left to right
 LABEL = {"raw": "Sensory (raw readings)", **MODEL_NAMES}
@@ -113,14 +113,6 @@ def to_html(blocks: list[Block], title: str) -> str:
 
 
 # --- numbers -----------------------------------------------------------------------------------
-
-
-def fmt_cell(cell: dict | None, digits: int = 5) -> str:
-    if cell is None:
-        return ""
-    if cell["n"] > 1:
-        return f"{cell['mean']:.{digits}f} ± {cell['sd']:.{digits}f}"
-    return f"{cell['mean']:.{digits}f}"
 
 
 def _mean_sd(values: list[float]) -> tuple[float, float]:

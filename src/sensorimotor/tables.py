@@ -15,6 +15,15 @@ PAPER_TABLE_I = {
 }
 
 
+def fmt_cell(cell: dict | None, digits: int = 5) -> str:
+    """A Table I cell: the mean, with the sample sd when there are several seeds."""
+    if cell is None:
+        return ""
+    if cell["n"] > 1:
+        return f"{cell['mean']:.{digits}f} ± {cell['sd']:.{digits}f}"
+    return f"{cell['mean']:.{digits}f}"
+
+
 def paper_ordering_holds(cells: dict[str, float]) -> bool | None:
     """The paper's claim in one column: Rec-SM < SM < both Rec-S and S (None if a cell is missing)."""
     if any(k not in cells for k in MODEL_KINDS):

@@ -1,0 +1,111 @@
+"""Evaluation: the paper's error, the baselines, carried state, and Table I from several runs."""
+
+from __future__ import annotations
+
+import json
+import statistics
+
+import pytest
+import torch
+
+import sensorimotor.evaluate as ev
+from sensorimotor.data import load_database
+from sensorimotor.evaluate import baselines, load_run, prediction_error, run_model, split_tensors
+from sensorimotor.models import build_model
+from sensorimotor.train import TrainConfig, train
+
+
+def test_error_sums_over_sensors_and_averages_over_steps():
+    sensors = torch.zeros(4, 5)
+    sensors[1:, 0] = 1.0  # s_1..s_3 have sensor 0 at 1
+    pred = torch.zeros(4, 5)  # predicts 0 everywhere: each step misses by 1 on one sensor
+    assert prediction_error(pred, sensors) == pytest.approx(1.0)  # not 1/5: a sum, not a mean
+    pred[0, 0] = 1.0  # step 0 now right
+    assert prediction_error(pred, sensors) == pytest.approx(2 / 3)
+
+
+def test_baselines_on_a_real_database(square_db_path):
+    db = load_database(square_db_path)
+    s, _ = split_tensors(db, "test")
+    b = baselines(db)
+    assert b["copy_last"] == pytest.approx(float(((s[1:] - s[:-1]) ** 2).sum(-1).mean()), rel=1e-6)
+    train_mean = split_tensors(db, "train")[0].mean(0)
+    assert b["mean"] == pytest.approx(float(((s[1:] - train_mean) ** 2).sum(-1).mean()), rel=1e-6)
+    assert 0 < b["copy_last"] < b["mean"]
+
+
+@pytest.mark.parametrize("kind", ["rec-s", "rec-sm"])
+def test_carrying_state_over_the_split_equals_chunks_of_20(kind, monkeypatch):
+    model = build_model(kind, seed=0)
+    s, m = torch.rand(1003, 5), torch.rand(1003, 2)
+    whole_pred, whole_z = run_model(model, s, m)
+    state, preds = None, []
+    with torch.no_grad():
+        for i in range(0, len(s), 20):
+            p, _, state = model(s[None, i : i + 20], m[None, i : i + 20], state)
+            preds.append(p[0])
+    torch.testing.assert_close(torch.cat(preds), whole_pred, rtol=1e-5, atol=1e-6)
+    monkeypatch.setattr(ev, "CHUNK", 7)  # run_model's own chunking does not change the numbers
+    p7, z7 = run_model(model, s, m)
+    torch.testing.assert_close(p7, whole_pred, rtol=1e-5, atol=1e-6)
+    torch.testing.assert_close(z7, whole_z, rtol=1e-5, atol=1e-6)
+    # and the state matters: restarting every 20 steps gives other predictions
+    restarted = torch.cat(
+        [model(s[None, i : i + 20], m[None, i : i + 20])[0][0] for i in range(0, 1003, 20)]
+    )
+    assert not torch.allclose(restarted, whole_pred, atol=1e-4)
+
+
+@pytest.fixture(scope="module")
+def two_seeds(square_db_path, tmp_path_factory):
+    root = tmp_path_factory.mktemp("runs")
+    for seed in (0, 1):
+        train(square_db_path, root / f"sm{seed}", TrainConfig(model="sm", seed=seed, max_epochs=2))
+    train(square_db_path, root / "s0", TrainConfig(model="s", seed=0, max_epochs=2))
+    return root
+
+
+def test_evaluate_cli_writes_the_documented_json(
+    two_seeds, square_db_path, rooms1_db_path, tmp_path, cli
+):
+    out = tmp_path / "ev.json"
+    proc = cli(
+        "evaluate",
+        two_seeds / "sm0",
+        "--data",
+        square_db_path,
+        "--data",
+        rooms1_db_path,
+        "--json",
+        out,
+    )
+    assert proc.returncode == 0, proc.stderr
+    res = json.loads(out.read_text())
+    assert res["model"] == "sm"
+    assert res["trained_on"] == "square"
+    assert set(res["errors"]) == {"square", "rooms1"}
+    assert set(res["baselines"]["rooms1"]) == {"mean", "copy_last"}
+    run, db = load_run(two_seeds / "sm0"), load_database(rooms1_db_path)
+    s, m = split_tensors(db, "test")
+    assert res["errors"]["rooms1"] == pytest.approx(ev.model_error(run.model, s, m))
+    assert "square" in proc.stdout
+    assert "copy-last" in proc.stdout
+
+
+def test_table_gives_mean_and_sd_over_seeds(two_seeds, square_db_path, tmp_path, cli):
+    out = tmp_path / "t.json"
+    runs = [two_seeds / "sm0", two_seeds / "sm1", two_seeds / "s0"]
+    proc = cli("table", *runs, "--data", square_db_path, "--json", out)
+    assert proc.returncode == 0, proc.stderr
+    t = json.loads(out.read_text())
+    rows = {r["model"]: r for r in t["tables"]["square"]}
+    assert set(rows) == {"s", "sm"}
+    values = [r["errors"]["square"] for r in t["runs"] if r["model"] == "sm"]
+    cell = rows["sm"]["cells"]["square"]
+    assert cell["n"] == 2
+    assert cell["mean"] == pytest.approx(statistics.mean(values))
+    assert cell["sd"] == pytest.approx(statistics.stdev(values))
+    assert values[0] != values[1]  # two seeds, two models
+    assert rows["s"]["cells"]["square"]["sd"] == 0.0
+    assert t["paper_ordering_holds"]["square"]["square"] is None  # rec models missing
+    assert "0.005576" in proc.stdout  # the paper's SM value beside ours

@@ -1,0 +1,163 @@
+"""`sensorimotor reproduce`: one command end to end, cached, resumable after a kill."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import matplotlib.image as mpimg
+import pytest
+
+from conftest import assert_one_line_error
+
+STAGES = ("data", "train", "evaluate", "analyze", "report")
+
+
+def _reproduce(out: Path, *extra: str, timeout: float = 900) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "sensorimotor",
+            "reproduce",
+            "--scale",
+            "smoke",
+            "--out",
+            str(out),
+            "--workers",
+            "2",
+            *extra,
+        ],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
+
+
+def _table_numbers(out: Path) -> dict:
+    t = json.loads((out / "table1.json").read_text())
+    return {
+        tw: {r["model"]: {w: c["values"] for w, c in r["cells"].items()} for r in rows}
+        for tw, rows in t["tables"].items()
+    }
+
+
+@pytest.fixture(scope="module")
+def smoke(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("reproduce") / "smoke"
+    proc = _reproduce(out)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return out
+
+
+def test_smoke_report_has_every_stage_and_a_full_table(smoke):
+    md = (smoke / "report.md").read_text()
+    html = (smoke / "report.html").read_text()
+    for stage in STAGES:
+        assert f"| {stage} |" in md, stage
+    t = json.loads((smoke / "table1.json").read_text())
+    assert sorted(t["tables"]) == ["rooms1", "rooms2", "square"]
+    for rows in t["tables"].values():
+        numbers = [c["mean"] for r in rows for c in r["cells"].values()]
+        assert len(numbers) == 12  # 4 models x 3 test worlds
+        assert all(0 < x < 10 for x in numbers)
+    assert md.count("### Trained on") == 3
+    # every image of the Markdown report exists and loads; the HTML embeds them all
+    images = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", md)
+    assert len(images) >= 10
+    for rel in images:
+        img = mpimg.imread(smoke / rel)
+        assert img.ndim == 3
+        assert img.shape[0] > 50
+    assert html.count("data:image/png;base64,") == len(images)
+    assert 'src="figures' not in html  # self-contained
+
+
+def test_rerun_uses_the_cache_and_a_deleted_stage_is_redone_alone(smoke):
+    before = _table_numbers(smoke)
+    stamp = {p: p.stat().st_mtime_ns for p in (smoke / "runs").rglob("model.pt")}
+    proc = _reproduce(smoke)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    timings = json.loads((smoke / "timings.json").read_text())
+    assert timings["train"]["jobs"] == 0
+    assert timings["train"]["cached"] == 12
+    assert timings["evaluate"]["jobs"] == 0
+    assert timings["analyze"]["jobs"] == 0
+    assert {p: p.stat().st_mtime_ns for p in stamp} == stamp  # no training happened
+    # delete one evaluation and one analysis: exactly those are redone
+    (smoke / "eval" / "rooms1__sm__s0.json").unlink()
+    shutil.rmtree(smoke / "analysis" / "square__s__s0")
+    proc = _reproduce(smoke)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    timings = json.loads((smoke / "timings.json").read_text())
+    assert (timings["train"]["jobs"], timings["evaluate"]["jobs"], timings["analyze"]["jobs"]) == (
+        0,
+        1,
+        1,
+    )
+    assert _table_numbers(smoke) == before
+    # delete a run folder: that training alone is redone, to the same numbers
+    shutil.rmtree(smoke / "runs" / "rooms2__rec-s__s0")
+    proc = _reproduce(smoke)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    timings = json.loads((smoke / "timings.json").read_text())
+    assert timings["train"]["jobs"] == 1
+    assert _table_numbers(smoke) == before
+
+
+def test_killed_during_training_resumes_to_the_same_table(smoke, tmp_path):
+    out = tmp_path / "killed"
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "sensorimotor",
+            "reproduce",
+            "--scale",
+            "smoke",
+            "--out",
+            str(out),
+            "--workers",
+            "2",
+        ],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
+    deadline = time.time() + 300
+    while time.time() < deadline and not list((out / "runs").glob("*/checkpoint.pt")):
+        time.sleep(0.05)
+    assert proc.poll() is None, "finished before it could be killed"
+    proc.send_signal(signal.SIGKILL)  # the parent only: workers must die with it
+    proc.wait()
+    time.sleep(1.0)
+    assert not (out / "report.md").exists()
+    again = _reproduce(out)
+    assert again.returncode == 0, again.stderr[-3000:]
+    assert _table_numbers(out) == _table_numbers(smoke)
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["--scale", "huge"], "unknown scale"),
+        (["--seeds", "0"], "--seeds"),
+        (["--workers", "0"], "--workers"),
+    ],
+)
+def test_bad_options_are_refused(args, needle, tmp_path, cli):
+    proc = cli("reproduce", "--out", tmp_path / "o", *args)
+    assert_one_line_error(proc, needle)
+
+
+def test_output_folder_that_is_a_file_is_refused(tmp_path, cli):
+    target = tmp_path / "report.txt"
+    target.write_text("not a folder")
+    proc = cli("reproduce", "--scale", "smoke", "--out", target)
+    assert_one_line_error(proc, str(target), "is a file")
