@@ -81,12 +81,23 @@ def _data_job(world: str, steps: int, seed: int, path: str, key: str) -> str:
     return path
 
 
-def _train_job(data: str, run_dir: str, config: dict, key: str) -> dict:
+def run_matches(run: Path, data_sha: str, config: dict) -> bool:
+    """Whether a run folder was made from this data and this training configuration."""
+    from sensorimotor.train import TrainConfig
+
+    try:
+        made = json.loads((run / "config.json").read_text())
+    except (OSError, ValueError):
+        return False
+    want = {k: v for k, v in asdict(TrainConfig(**config)).items() if k != "device"}
+    return made.get("data", {}).get("sha256") == data_sha and made.get("train") == want
+
+
+def _train_job(data: str, run_dir: str, config: dict, data_sha: str) -> dict:
     from sensorimotor.train import TrainConfig, train
 
     run = Path(run_dir)
-    stage = run / "stage.json"
-    if run.exists() and _read_key(stage) != key:
+    if run.exists() and not run_matches(run, data_sha, config):
         shutil.rmtree(run)  # made from other inputs: start again
     name = run.name
 
@@ -98,11 +109,9 @@ def _train_job(data: str, run_dir: str, config: dict, key: str) -> dict:
         )
 
     result = train(data, run, TrainConfig(**config), resume=True, on_epoch=on_epoch)
-    _write_json(stage, {"key": key})
     report(
         name,
-        f"done: {result.stopped} after {result.epochs} epochs, best val "
-        f"{result.best_val_error:.5f}",
+        f"done: {result.stopped} after {result.epochs} epochs, best val {result.best_val_error:.5f}",
     )
     return {"epochs": result.epochs, "best_val_error": result.best_val_error}
 
@@ -244,13 +253,12 @@ def reproduce(
                         "device": device,
                         "max_epochs": sc.max_epochs.get(model),
                     }
-                    key = stage_key({"data": data_hash[world], "config": config})
                     run = rep.run_dir(world, model, seed)
-                    if (run / "result.json").exists() and _read_key(run / "stage.json") == key:
+                    done = (run / "result.json").exists()
+                    if done and run_matches(run, data_hash[world], config):
                         continue
-                    jobs.append(
-                        Job(run.name, _train_job, (str(rep.data[world]), str(run), config, key))
-                    )
+                    args = (str(rep.data[world]), str(run), config, data_hash[world])
+                    jobs.append(Job(run.name, _train_job, args))
         rep.timings["train"] = {"jobs": len(jobs), "cached": len(rep.runs) - len(jobs)}
         log(
             f"  {len(jobs)} trainings to run, {len(rep.runs) - len(jobs)} cached, {workers} worker(s)"

@@ -1,282 +1,569 @@
-"""Several seeds of a feed-forward encoder (S, SM) trained at once through stacked weights.
+"""Several seeds of a feed-forward encoder (S, SM) trained at once, through stacked weights.
 
-Training these encoders one batch of 64 at a time is bound by per-operation overhead, not by
-arithmetic: a tiny torch call costs a few microseconds on a CPU, and autograd adds its own
-bookkeeping per node. This module trains K seeds as one network whose weights carry a leading
-seed axis: ``W (K, out, in)``, ``b (K, 1, out)``; each layer is one ``baddbmm`` over all seeds,
-and the backward pass is written out by hand (no autograd):
+A training step of these encoders is bound by per-operation overhead, not by arithmetic: a
+tiny torch call costs a few microseconds on a CPU and autograd adds its own bookkeeping per
+node. Here K seeds train as one network whose tensors carry a leading seed axis; each layer is
+one ``baddbmm`` over all seeds and the backward pass is written out by hand (no autograd):
 
-    forward    h' = relu(b + h W^T)                       (K, B, in) -> (K, B, out)
-    backward   dW = dy^T h   (K, out, in)      db = sum_B dy   (K, 1, out)
-               dh = (dy W) * [h > 0]                      (K, B, in)
+    forward    h' = relu(b + h W^T)                            (K, B, in) -> (K, B, out)
+    backward   dW = dy^T h  (K, out, in)     db = sum_B dy  (K, 1, out)
+               dh = (dy W) * [h' > 0]  for the layer below     (K, B, in)
 
-The loss gradient of the paper's error (squared error summed over the 5 sensors, mean over the
-batch) is ``dy = 2 (pred - y) / B``. The operations and operand layouts are those autograd uses
-for ``nn.Linear``, so every seed's gradients equal, bit for bit, those of the ``nn.Module``
-trained alone (a test checks it). Adam is elementwise: the fused kernel on stacked tensors gives
-each seed exactly its own Adam (``train.FusedAdam``).
+with ``dy = 2 (pred - y) / B`` at the output: the gradient of the paper's error (squared error
+summed over the 5 sensors, mean over the batch). Adam is elementwise, so ``torch._fused_adam_``
+on stacked tensors gives every seed exactly the Adam of ``train.FusedAdam``.
 
-Nothing else changes: each seed sees batches of 64 from its own data order
-(``train.epoch_generator``), starts from its own ``models.build_model(kind, seed)``, keeps its
-own early stopping and best weights, and writes a run folder identical to a single-seed run.
-A seed that stops leaves the stack, so it costs nothing more and the others are unaffected
-(a seed's numbers do not depend on which seeds share its stack). After a kill, seeds may be at
-different epochs: the stack that lags trains alone until it has caught up, then they merge.
+Nothing of the algorithm changes: each seed starts from ``models.build_model(kind, seed)``,
+sees batches of 64 in its own order (``train.epoch_generator``), keeps its own early stopping
+and best weights, and gets a run folder identical to a single-seed run. A seed that stops
+leaves the stack (it costs nothing more), and no seed's numbers depend on which seeds share
+its stack (every operation treats the seeds independently; tests check it bit for bit).
+
+Two layouts. ``exact=True`` stores every weight as ``nn.Linear`` does, ``(K, out, in)``, and
+calls the products autograd calls, so a stack of one gives bit for bit the weights of the
+``nn.Module`` trained with autograd (``train.train_epoch_feedforward``); ``train.train`` uses it.
+``exact=False`` (stacks of seeds) stores widening layers as ``(K, in, out)``, whose products
+the BLAS runs two to four times faster: the same algebra, summed in another order, so it agrees
+with autograd to float rounding (~1e-7 a step) rather than bit for bit.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import torch
 
+from sensorimotor import train as train_mod
+from sensorimotor.data import load_database
 from sensorimotor.errors import InputError
-from sensorimotor.models import ModelConfig, SensorimotorEncoder
+from sensorimotor.evaluate import split_tensors
+from sensorimotor.models import ModelConfig, SensorimotorEncoder, build_model
+from sensorimotor.train import (
+    EarlyStopping,
+    EpochRecord,
+    FusedAdam,
+    TrainConfig,
+    TrainResult,
+    check_run_dir,
+    check_trainable,
+    epoch_generator,
+    finish_run,
+    load_checkpoint,
+    open_run_dir,
+    resolve_device,
+    run_meta,
+    save_epoch,
+    stop_reason,
+    stored_result,
+)
 
-RELU_GRAD = torch.ops.aten.threshold_backward.default  # autograd's ReLU backward, one call
-CHUNK_BATCHES = 512  # batches gathered at once: bounds memory at K x 32,768 transitions
-FEEDFORWARD = ("s", "sm")
+RELU_GRAD = torch.ops.aten.threshold_backward.default  # autograd's ReLU backward, in one call
+CHUNK_BATCHES = 512  # batches gathered at once: K x 32,768 transitions, a few MB
+ALIGN_ROWS = 16  # gathered rows padded to a multiple of this: 64-byte aligned seed slabs
+ADAM_VECTOR = 16  # floats per SIMD vector, at most (AVX-512); see StackedEncoders._adam_lists
+
+OnEpoch = Callable[[int, EpochRecord, EarlyStopping], None]  # (seed, record, stopper)
 
 
 def run_name(world: str, model: str, seed: int) -> str:
-    """Name of one run folder under a multi-seed ``--out`` (CleanRL's ``world__model__sSEED``)."""
+    """The run folder of one seed under a multi-seed ``--out``: ``{world}__{model}__s{seed}``."""
     return f"{world}__{model}__s{seed}"
 
 
 def check_seeds(seeds: Sequence[int]) -> list[int]:
-    """Refuse an empty list or a repeated seed; returns the seeds as a list of ints."""
+    """Refuse an empty list or a repeated seed."""
     seeds = [int(s) for s in seeds]
     if not seeds:
         raise InputError("--seeds: give at least one seed, e.g. 0,1,2,3,4")
-    seen = set()
-    for s in seeds:
-        if s in seen:
+    for i, s in enumerate(seeds):
+        if s in seeds[:i]:
             raise InputError(f"--seeds: seed {s} is given twice")
-        seen.add(s)
     return seeds
 
 
-class StackedEncoders:
-    """K feed-forward encoders of one kind (S or SM), their weights stacked on a seed axis.
+def linear_names(config: ModelConfig) -> list[str]:
+    """Names of a model's ``nn.Linear`` modules, in ``parameters()`` order."""
+    with torch.device("meta"):
+        model = SensorimotorEncoder(config)
+    return [n for n, mod in model.named_modules() if isinstance(mod, torch.nn.Linear)]
 
-    ``params`` follows ``SensorimotorEncoder.parameters()``: for every ``nn.Linear`` its weight
-    ``(K, out, in)`` then its bias ``(K, 1, out)``. ``grads`` are preallocated alike and
-    filled by :meth:`backward`, so the optimiser's lists never change during an epoch.
+
+# --- the stack: weights, gradients and Adam state of K seeds -------------------------------
+
+
+class StackedEncoders:
+    """K feed-forward encoders of one kind (S or SM): weights, gradients and Adam state.
+
+    ``params`` follows ``SensorimotorEncoder.parameters()``: for every ``nn.Linear`` its weight,
+    ``(K, out, in)`` or, where ``transposed[i]``, ``(K, in, out)``, then its bias
+    ``(K, 1, out)``. ``grads`` are preallocated alike; all seeds have taken ``step`` Adam steps.
     """
 
-    def __init__(self, config: ModelConfig, params: list[torch.Tensor]):
+    def __init__(
+        self,
+        config: ModelConfig,
+        params: list[torch.Tensor],
+        exp_avg: list[torch.Tensor],
+        exp_avg_sq: list[torch.Tensor],
+        step: float,
+        exact: bool,
+        lr: float = 1e-3,
+    ):
         if config.recurrent:
             raise ValueError(f"stacked training is for s and sm, not {config.kind}")
-        self.config = config
-        self.params = params
-        self.grads = [torch.empty_like(p) for p in params]
-        names = linear_names(config)
-        if len(params) != 2 * len(names):
-            raise ValueError(f"{config.kind}: expected {2 * len(names)} tensors, got {len(params)}")
-        self.groups: dict[str, list[int]] = {}  # "sensor_encoder" -> indices of its layers
-        for i, name in enumerate(names):
-            self.groups.setdefault(name.split(".")[0], []).append(i)
+        self.config, self.exact, self.lr = config, exact, lr
+        self.params, self.exp_avg, self.exp_avg_sq = params, exp_avg, exp_avg_sq
+        self.step = torch.full((), float(step), device=params[0].device)  # float32, as FusedAdam
+        self.transposed = transposed_layers(config, exact)
+        self.chains: dict[str, list[int]] = {}  # "sensor_encoder" -> its layers, in order
+        for i, name in enumerate(linear_names(config)):
+            self.chains.setdefault(name.split(".")[0], []).append(i)
+        self._prepare()
 
     @property
     def k(self) -> int:
         return self.params[0].shape[0]
 
     @classmethod
-    def from_models(cls, models: Sequence[SensorimotorEncoder]) -> StackedEncoders:
-        """Stack the weights of ``models`` (all of one feed-forward kind), in that order."""
-        per_model = [[p.detach() for p in m.parameters()] for m in models]
-        params = []
-        for tensors in zip(*per_model, strict=True):
-            stacked = torch.stack(tensors)  # (K, out, in) | (K, out)
-            params.append(stacked if stacked.dim() == 3 else stacked[:, None, :].contiguous())
-        return cls(models[0].config, params)
+    def from_models(
+        cls,
+        models: Sequence[SensorimotorEncoder],
+        optimizers: Sequence[FusedAdam] | None = None,
+        exact: bool = False,
+        lr: float = 1e-3,
+    ) -> StackedEncoders:
+        """Stack ``models`` (one feed-forward kind) and, if given, their ``FusedAdam`` states."""
+        config = models[0].config
+        transposed = transposed_layers(config, exact)
 
-    def load_into(self, k: int, model: SensorimotorEncoder) -> SensorimotorEncoder:
-        """Copy seed ``k``'s weights into ``model`` (same kind); returns it."""
-        with torch.no_grad():
-            for p, src in zip(model.parameters(), self.params, strict=True):
-                p.copy_(src[k].reshape(p.shape))
-        return model
+        def stack(per_model: list[list[torch.Tensor]]) -> list[torch.Tensor]:
+            out = []
+            for i, tensors in enumerate(zip(*per_model, strict=True)):
+                if i % 2 == 0:  # weight (out, in)
+                    t = torch.stack([w.t() if transposed[i // 2] else w for w in tensors])
+                else:  # bias (out,)
+                    t = torch.stack(tensors)[:, None, :]
+                out.append(t.detach().contiguous())
+            return out
 
-    def select(self, index: Sequence[int]) -> None:
-        """Keep only the seeds at ``index`` (in that order): a stopped seed leaves the stack."""
-        idx = torch.tensor(list(index), dtype=torch.long, device=self.params[0].device)
-        self.params = [p.index_select(0, idx) for p in self.params]
+        params = stack([list(m.parameters()) for m in models])
+        if optimizers is None:
+            zeros = [torch.zeros_like(p) for p in params]
+            return cls(config, params, zeros, [z.clone() for z in zeros], 0, exact, lr)
+        steps = {float(opt.steps[0]) for opt in optimizers}
+        if len(steps) != 1:
+            raise ValueError(f"seeds at different Adam steps cannot share a stack: {steps}")
+        exp_avg = stack([opt.exp_avg for opt in optimizers])
+        exp_avg_sq = stack([opt.exp_avg_sq for opt in optimizers])
+        return cls(config, params, exp_avg, exp_avg_sq, steps.pop(), exact, lr)
+
+    def _prepare(self) -> None:
+        """Gradient buffers, the weight views of each product, and Adam's tensor lists."""
         self.grads = [torch.empty_like(p) for p in self.params]
+        # per layer: (forward operand (K, in, out), backward operand for dh, bias, transposed)
+        self.layers = []
+        for i, tr in enumerate(self.transposed):
+            w, b = self.params[2 * i], self.params[2 * i + 1]
+            self.layers.append((w if tr else w.mT, w.mT if tr else w, b, tr))
+        self._adam = [self._adam_lists(t) for t in (self.params, self.grads)]
+        self._adam += [self._adam_lists(t) for t in (self.exp_avg, self.exp_avg_sq)]
 
-    def _layers(self, group: str) -> list[tuple[int, torch.Tensor, torch.Tensor]]:
-        return [(i, self.params[2 * i], self.params[2 * i + 1]) for i in self.groups[group]]
+    def _adam_lists(self, tensors: list[torch.Tensor]) -> list[torch.Tensor]:
+        """Each tensor whole, or seed by seed where one seed's size is not a whole number of
+        SIMD vectors: the fused kernel runs a vector loop then a scalar tail (the two round
+        differently), and each seed's elements must fall in the loop they fall in alone."""
+        out = []
+        for t in tensors:
+            if t[0].numel() % ADAM_VECTOR == 0:
+                out.append(t)
+            else:
+                out.extend(t.unbind(0))
+        return out
 
-    def forward_backward(
-        self, xs: torch.Tensor, xm: torch.Tensor | None, y: torch.Tensor, sq_sum: torch.Tensor
-    ) -> None:
-        """One batch: fill ``self.grads`` with each seed's loss gradient; add each seed's summed
-        squared error to ``sq_sum`` (K, 1, 1).
-
-        xs (K, B, 5) sensors, xm (K, B, 2) motors (SM) or None (S), y (K, B, 5) next sensors.
-        """
-        params, grads = self.params, self.grads
-        hs = _chain_forward(params, self.groups["sensor_encoder"], xs)  # [.., (K, B, 10)]
-        z = hs[-1]
-        if self.config.uses_motors:
-            hm = _chain_forward(params, self.groups["motor_encoder"], xm)  # [.., (K, B, 5)]
-            z = torch.cat([z, hm[-1]], dim=-1)  # (K, B, 15)
-        hp = _chain_forward(params, self.groups["predictor"], z)  # [.., (K, B, 5)]
-        diff = hp[-1].sub_(y)  # (K, B, 5)
-        k, b = diff.shape[0], diff.shape[1]
-        sq_sum.baddbmm_(diff.view(k, 1, -1), diff.view(k, -1, 1))  # += sum of squares
-        dy = diff.mul_(2.0 / b)  # d/dpred of mean_B sum_5 (pred - y)^2
-        dz = _chain_backward(params, grads, self.groups["predictor"], hp, dy, input_grad=True)
-        zs = self.config.z_sensors
-        if self.config.uses_motors:
-            _chain_backward(params, grads, self.groups["motor_encoder"], hm, dz[..., zs:])
-            dz = dz[..., :zs]
-        _chain_backward(params, grads, self.groups["sensor_encoder"], hs, dz)
-
-    @torch.no_grad()
-    def predict(self, xs: torch.Tensor, xm: torch.Tensor | None = None) -> torch.Tensor:
-        """Predictions (K, B, 5) of every seed for its own inputs (K, B, 5), (K, B, 2)."""
-        z = _chain_forward(self.params, self.groups["sensor_encoder"], xs)[-1]
-        if self.config.uses_motors:
-            zm = _chain_forward(self.params, self.groups["motor_encoder"], xm)[-1]
-            z = torch.cat([z, zm], dim=-1)
-        return _chain_forward(self.params, self.groups["predictor"], z)[-1]
-
-
-def linear_names(config: ModelConfig) -> list[str]:
-    """Names of the ``nn.Linear`` modules of a model, in parameter order."""
-    with torch.device("meta"):
-        model = SensorimotorEncoder(config)
-    return [n for n, m in model.named_modules() if isinstance(m, torch.nn.Linear)]
-
-
-def _chain_forward(params, layers: list[int], h: torch.Tensor) -> list[torch.Tensor]:
-    """Inputs of every layer of one chain, and its output: ReLU after all but the last."""
-    hs = [h]
-    last = layers[-1]
-    for i in layers:
-        h = torch.baddbmm(params[2 * i + 1], h, params[2 * i].mT)  # (K, B, out)
-        if i != last:
-            h = h.relu_()
-        hs.append(h)
-    return hs
-
-
-def _chain_backward(params, grads, layers, hs, dy, input_grad: bool = False):
-    """Gradients of one chain's weights into ``grads``; returns d/d(chain input) if asked."""
-    for j in range(len(layers) - 1, -1, -1):
-        i = layers[j]
-        h = hs[j]  # (K, B, in): input of layer i
-        torch.bmm(dy.mT, h, out=grads[2 * i])  # (K, out, in)
-        torch.sum(dy, 1, keepdim=True, out=grads[2 * i + 1])  # (K, 1, out)
-        if j:
-            dy = RELU_GRAD(torch.bmm(dy, params[2 * i]), h, 0)  # (K, B, in), h = relu output
-        elif input_grad:
-            return torch.bmm(dy, params[2 * i])
-    return None
-
-
-class StackedAdam:
-    """``train.FusedAdam`` on stacked tensors: the same fused kernel, so each seed gets exactly
-    its own Adam. All seeds in a stack have taken the same number of steps (one step count)."""
-
-    def __init__(self, net: StackedEncoders, lr: float = 1e-3, betas=(0.9, 0.999), eps=1e-8):
-        self.net = net
-        self.lr, self.betas, self.eps = lr, betas, eps
-        self.exp_avg = [torch.zeros_like(p) for p in net.params]
-        self.exp_avg_sq = [torch.zeros_like(p) for p in net.params]
-        self.step_count = torch.zeros((), dtype=torch.float32, device=net.params[0].device)
-
-    @torch.no_grad()
-    def step(self) -> None:
-        self.step_count.add_(1)
-        params = self.net.params
+    def adam_step(self) -> None:
+        """One Adam step of every seed (learning rate ``lr``, betas 0.9, 0.999, eps 1e-8)."""
+        self.step.add_(1)
+        params, grads, exp_avg, exp_avg_sq = self._adam
         torch._fused_adam_(
             params,
-            self.net.grads,
-            self.exp_avg,
-            self.exp_avg_sq,
+            grads,
+            exp_avg,
+            exp_avg_sq,
             [],
-            [self.step_count] * len(params),
+            [self.step] * len(params),
             lr=self.lr,
-            beta1=self.betas[0],
-            beta2=self.betas[1],
+            beta1=0.9,
+            beta2=0.999,
             weight_decay=0.0,
-            eps=self.eps,
+            eps=1e-8,
             amsgrad=False,
             maximize=False,
         )
 
     def select(self, index: Sequence[int]) -> None:
-        """Keep the Adam state of the seeds at ``index`` (call with ``net.select``)."""
-        idx = torch.tensor(list(index), dtype=torch.long, device=self.step_count.device)
-        self.exp_avg = [t.index_select(0, idx) for t in self.exp_avg]
-        self.exp_avg_sq = [t.index_select(0, idx) for t in self.exp_avg_sq]
+        """Keep only the seeds at ``index``, in that order (a stopped seed leaves the stack)."""
+        idx = torch.tensor(list(index), dtype=torch.long, device=self.step.device)
+        for name in ("params", "exp_avg", "exp_avg_sq"):
+            setattr(self, name, [t.index_select(0, idx) for t in getattr(self, name)])
+        self._prepare()
 
-    def state_dict(self, k: int, shapes: list[torch.Size]) -> dict:
-        """Seed ``k``'s state in ``train.FusedAdam``'s format (tensors shaped like ``shapes``)."""
+    @classmethod
+    def concat(cls, stacks: Sequence[StackedEncoders]) -> StackedEncoders:
+        """One stack of the seeds of ``stacks`` (all at the same Adam step), in that order."""
+        first = stacks[0]
+        if len({float(s.step) for s in stacks}) != 1:
+            raise ValueError("stacks at different Adam steps cannot merge")
+
+        def cat(name: str) -> list[torch.Tensor]:
+            return [torch.cat(ts) for ts in zip(*(getattr(s, name) for s in stacks), strict=True)]
+
+        return cls(
+            first.config,
+            cat("params"),
+            cat("exp_avg"),
+            cat("exp_avg_sq"),
+            float(first.step),
+            first.exact,
+            first.lr,
+        )
+
+    def _per_seed(self, tensors: list[torch.Tensor], k: int) -> list[torch.Tensor]:
+        """Copies of seed ``k``'s slice of stacked tensors, shaped as ``nn.Linear``'s weight
+        (out, in) and bias (out,)."""
+        out = []
+        for i, t in enumerate(tensors):
+            if i % 2:  # bias (K, 1, out)
+                out.append(t[k, 0].clone())
+            else:  # weight (K, out, in) or (K, in, out)
+                w = t[k].t() if self.transposed[i // 2] else t[k]
+                out.append(w.clone(memory_format=torch.contiguous_format))
+        return out
+
+    def load_into(self, k: int, model: SensorimotorEncoder) -> SensorimotorEncoder:
+        """Copy seed ``k``'s weights into ``model`` (same kind); returns it."""
+        with torch.no_grad():
+            for p, src in zip(model.parameters(), self._per_seed(self.params, k), strict=True):
+                p.copy_(src)
+        return model
+
+    def optimizer_state(self, k: int) -> dict:
+        """Seed ``k``'s Adam state in ``train.FusedAdam.state_dict()``'s format."""
         return {
-            "exp_avg": [t[k].reshape(s).clone() for t, s in zip(self.exp_avg, shapes, strict=True)],
-            "exp_avg_sq": [
-                t[k].reshape(s).clone() for t, s in zip(self.exp_avg_sq, shapes, strict=True)
-            ],
-            "steps": [self.step_count.clone() for _ in shapes],
+            "exp_avg": self._per_seed(self.exp_avg, k),
+            "exp_avg_sq": self._per_seed(self.exp_avg_sq, k),
+            "steps": [self.step.clone() for _ in self.params],
         }
 
-    def load_state_dicts(self, states: Sequence[dict]) -> None:
-        """Stack the ``train.FusedAdam`` states of every seed (all at the same step)."""
-        steps = {float(st["steps"][0]) for st in states}
-        if len(steps) != 1:
-            raise ValueError(f"seeds at different Adam steps cannot share a stack: {steps}")
-        for name in ("exp_avg", "exp_avg_sq"):
-            for dst, *srcs in zip(getattr(self, name), *(st[name] for st in states), strict=True):
-                dst.copy_(torch.stack([s.reshape(dst.shape[1:]) for s in srcs]))
-        self.step_count.fill_(steps.pop())
+    # --- the network, forward and backward -------------------------------------------------
+
+    def _forward(self, plan, chain: str, h: torch.Tensor) -> list[torch.Tensor]:
+        """The input of every layer of one chain, then its output (ReLU after all but last)."""
+        hs = [h]
+        layers = self.chains[chain]
+        for i in layers:
+            w_fwd, _, b, _ = plan[i]
+            h = torch.baddbmm(b, h, w_fwd)  # (K, B, out)
+            if i != layers[-1]:
+                h = h.relu_()
+            hs.append(h)
+        return hs
+
+    def _backward(self, plan, grads, chain: str, hs, dy: torch.Tensor, input_grad=False):
+        """Fill the gradients of one chain's layers; return d/d(chain input) if asked."""
+        layers = self.chains[chain]
+        for j in range(len(layers) - 1, -1, -1):
+            i = layers[j]
+            _, w_bwd, _, tr = plan[i]
+            h = hs[j]  # (K, B, in), input of layer i
+            if tr:
+                torch.bmm(h.mT, dy, out=grads[2 * i])  # (K, in, out)
+            else:
+                torch.bmm(dy.mT, h, out=grads[2 * i])  # (K, out, in)
+            torch.sum(dy, 1, keepdim=True, out=grads[2 * i + 1])  # (K, 1, out)
+            if j:
+                dy = RELU_GRAD(torch.bmm(dy, w_bwd), h, 0)  # (K, B, in); h is a ReLU output
+            elif input_grad:
+                return torch.bmm(dy, w_bwd)  # (K, B, in)
+        return None
+
+    def forward_backward(
+        self, xs: torch.Tensor, xm: torch.Tensor | None, y: torch.Tensor, sq_sum: torch.Tensor
+    ) -> None:
+        """One batch: each seed's loss gradient into ``grads``; each seed's summed squared
+        error added to ``sq_sum`` (K, 1, 1).
+
+        xs (K, B, 5) sensors, xm (K, B, 2) motors (SM; None for S), y (K, B, 5) next sensors.
+        A batch of a size other than a multiple of 16 (the last of an epoch) runs seed by
+        seed: there, a seed's slab of a stacked result would not start on a 64-byte boundary,
+        and the BLAS may then sum in another order than for the seed alone.
+        """
+        if xs.shape[1] % ALIGN_ROWS == 0 or self.k == 1:
+            self._forward_backward(self.layers, self.grads, xs, xm, y, sq_sum)
+            return
+        for k in range(self.k):
+            plan = [tuple(t[k : k + 1] for t in layer[:3]) + layer[3:] for layer in self.layers]
+            grads = [g[k : k + 1] for g in self.grads]
+            xm_k = None if xm is None else xm[k : k + 1]
+            self._forward_backward(
+                plan, grads, xs[k : k + 1], xm_k, y[k : k + 1], sq_sum[k : k + 1]
+            )
+
+    def _forward_backward(self, plan, grads, xs, xm, y, sq_sum) -> None:
+        hs = self._forward(plan, "sensor_encoder", xs)  # [(K, B, 5), ..., z_s (K, B, 10)]
+        z = hs[-1]
+        if self.config.uses_motors:
+            hm = self._forward(plan, "motor_encoder", xm)  # [(K, B, 2), ..., z_m (K, B, 5)]
+            z = torch.cat([z, hm[-1]], dim=-1)  # (K, B, 15)
+        hp = self._forward(plan, "predictor", z)  # [(K, B, 15), (K, B, 128), pred (K, B, 5)]
+        diff = hp[-1].sub_(y)  # (K, B, 5)
+        k, b = diff.shape[0], diff.shape[1]
+        sq_sum.baddbmm_(diff.view(k, 1, -1), diff.view(k, -1, 1))  # += sum of squares
+        dy = diff.mul_(2.0 / b)  # d/dpred of mean_B sum_5 (pred - y)^2; exact in float32
+        dz = self._backward(plan, grads, "predictor", hp, dy, input_grad=True)  # (K, B, 10|15)
+        if self.config.uses_motors:
+            zs = self.config.z_sensors
+            self._backward(plan, grads, "motor_encoder", hm, dz[..., zs:])
+            dz = dz[..., :zs]
+        self._backward(plan, grads, "sensor_encoder", hs, dz)
+
+    @torch.no_grad()
+    def predict(self, xs: torch.Tensor, xm: torch.Tensor | None = None) -> torch.Tensor:
+        """Each seed's prediction (K, B, 5) from its own inputs (K, B, 5), (K, B, 2)."""
+        z = self._forward(self.layers, "sensor_encoder", xs)[-1]
+        if self.config.uses_motors:
+            z = torch.cat([z, self._forward(self.layers, "motor_encoder", xm)[-1]], dim=-1)
+        return self._forward(self.layers, "predictor", z)[-1]
 
 
-def gather_epoch(
-    s: torch.Tensor, m: torch.Tensor, seeds: Sequence[int], epoch: int
-) -> torch.Tensor:
-    """Each seed's data order of one epoch, as ``train.train_epoch_feedforward`` draws it:
-    ``torch.randperm(n, generator=epoch_generator(seed, epoch))``; returns (K, n) indices."""
-    from sensorimotor.train import epoch_generator
+def transposed_layers(config: ModelConfig, exact: bool) -> list[bool]:
+    """Which layers store their weight as (in, out): none when exact, else the widening ones."""
+    with torch.device("meta"):
+        model = SensorimotorEncoder(config)
+    linears = [mod for mod in model.modules() if isinstance(mod, torch.nn.Linear)]
+    return [not exact and mod.out_features > mod.in_features for mod in linears]
 
-    n = len(s) - 1
-    perms = [torch.randperm(n, generator=epoch_generator(seed, epoch)) for seed in seeds]
-    return torch.stack(perms).to(s.device)  # (K, n)
+
+# --- one epoch -----------------------------------------------------------------------------
+
+
+def epoch_orders(n: int, seeds: Sequence[int], epoch: int) -> torch.Tensor:
+    """Each seed's data order of one epoch, drawn as ``train.train_epoch_feedforward`` draws
+    it: ``torch.randperm(n, generator=epoch_generator(seed, epoch))``; (K, n) indices."""
+    return torch.stack([torch.randperm(n, generator=epoch_generator(s, epoch)) for s in seeds])
 
 
 def train_epoch_stacked(
     net: StackedEncoders,
-    opt: StackedAdam,
     s: torch.Tensor,
     m: torch.Tensor,
     seeds: Sequence[int],
     epoch: int,
     batch: int,
 ) -> torch.Tensor:
-    """One epoch of every seed in the stack over its own shuffled transitions.
+    """One epoch of every seed of ``net`` over its own shuffled transitions.
 
-    s (n + 1, 5), m (n + 1, 2) the train split; seed ``seeds[k]`` is row k of the stack.
-    Returns each seed's mean training error (K,) (the paper's error, as the plain loop).
+    s (n + 1, 5), m (n + 1, 2): the train split; row k of the stack is seed ``seeds[k]``.
+    Each seed's transitions are gathered once per chunk of batches, so a batch is a view.
+    Returns each seed's mean training error (K,), on the device (no host synchronisation).
     """
     n = len(s) - 1
     if net.k != len(seeds):
         raise ValueError(f"{len(seeds)} seeds for a stack of {net.k}")
-    perm = gather_epoch(s, m, seeds, epoch)  # (K, n)
+    order = epoch_orders(n, seeds, epoch).to(s.device)  # (K, n)
     s0, m0, s1 = s[:-1], m[:-1], s[1:]
-    sm = net.config.uses_motors
+    motors = net.config.uses_motors
     sq_sum = torch.zeros(net.k, 1, 1, device=s.device)
     chunk = batch * CHUNK_BATCHES
     with torch.no_grad():
         for c in range(0, n, chunk):
-            idx = perm[:, c : c + chunk]  # (K, c)
-            xs_all, y_all = s0[idx], s1[idx]  # (K, c, 5), gathered once per chunk
-            xm_all = m0[idx] if sm else None  # (K, c, 2)
-            batches_s = xs_all.split(batch, dim=1)
-            batches_y = y_all.split(batch, dim=1)
-            batches_m = xm_all.split(batch, dim=1) if sm else [None] * len(batches_s)
-            for xs, xm, y in zip(batches_s, batches_m, batches_y, strict=True):
-                net.forward_backward(xs, xm, y, sq_sum)
-                opt.step()
+            idx = order[:, c : c + chunk]  # (K, c)
+            size, pad = idx.shape[1], -idx.shape[1] % ALIGN_ROWS
+            if pad:  # each seed's rows start on a 64-byte boundary, as they do alone
+                idx = torch.cat([idx, idx.new_zeros(net.k, pad)], dim=1)  # (K, c + pad)
+            xs = s0[idx][:, :size].split(batch, dim=1)  # (K, b, 5) views of one gather
+            ys = s1[idx][:, :size].split(batch, dim=1)  # (K, b, 5)
+            xms = m0[idx][:, :size].split(batch, dim=1) if motors else [None] * len(xs)
+            for x, xm, y in zip(xs, xms, ys, strict=True):
+                net.forward_backward(x, xm, y, sq_sum)
+                net.adam_step()
     return sq_sum.view(-1) / n
+
+
+# --- run folders ---------------------------------------------------------------------------
+
+
+@dataclass
+class _Run:
+    """One seed's run folder and where its training stands."""
+
+    seed: int
+    out: Path
+    model: SensorimotorEncoder  # scratch copy: validation and saving
+    stopper: EarlyStopping
+    history: list[EpochRecord] = field(default_factory=list)
+    epoch: int = 0  # the next epoch to train
+    elapsed: float = 0.0
+    result: TrainResult | None = None
+
+
+def train_runs(
+    data: str | Path,
+    runs: Sequence[tuple[int, str | Path]],
+    config: TrainConfig,
+    resume: bool = False,
+    on_epoch: OnEpoch | None = None,
+    exact: bool = False,
+) -> list[TrainResult]:
+    """Train S or SM once per ``(seed, run folder)`` in ``runs``, all seeds in one stack.
+
+    Every run folder is what ``train.train(data, out, replace(config, seed=seed))`` writes;
+    ``config.seed`` is not used. With ``resume``, each run continues from its checkpoint;
+    seeds left at different epochs (a kill between two seeds' checkpoints) train in separate
+    stacks, the lagging one first, and merge once they have caught up.
+    """
+    data = Path(data)
+    device = resolve_device(config.device)
+    config = replace(config, device=device)
+    model_config = ModelConfig(kind=config.model)
+    if model_config.recurrent:
+        raise ValueError(f"stacked training is for s and sm, not {config.model}")
+    seeds = check_seeds([seed for seed, _ in runs])
+    outs = [Path(out) for _, out in runs]
+    if len(set(outs)) != len(outs):
+        raise ValueError("two runs share a run folder")
+    db = load_database(data)
+    check_trainable(db, config)
+    sha = None
+    metas = []
+    for seed, out in zip(seeds, outs, strict=True):
+        meta = run_meta(data, db, replace(config, seed=seed), sha)
+        sha = meta["data"]["sha256"]
+        check_run_dir(out, meta, resume)  # every folder checked before any is written
+        metas.append(meta)
+    for out, meta in zip(outs, metas, strict=True):
+        open_run_dir(out, meta)
+
+    torch.set_num_threads(config.threads)
+    state: list[_Run] = []
+    opts: list[FusedAdam] = []
+    for seed, out in zip(seeds, outs, strict=True):
+        model = build_model(model_config, seed=seed).to(device)
+        opt = FusedAdam(model.parameters(), lr=config.lr)
+        run = _Run(seed, out, model, EarlyStopping(config.patience, config.min_ratio))
+        if resume and (out / "checkpoint.pt").exists():
+            run.stopper, run.history, run.epoch, run.elapsed = load_checkpoint(
+                out, device, model, opt
+            )
+            run.result = stored_result(out, run.history)
+        state.append(run)
+        opts.append(opt)
+
+    s, m = split_tensors(db, "train", device)
+    vs, vm = split_tensors(db, "val", device)
+    n = len(s) - 1
+    stacks: list[tuple[list[_Run], StackedEncoders]] = []  # seeds at one epoch, and their stack
+    by_epoch: dict[int, list[int]] = {}
+    for i, run in enumerate(state):
+        if run.result is None:
+            by_epoch.setdefault(run.epoch, []).append(i)
+    for idx in by_epoch.values():
+        net = StackedEncoders.from_models(
+            [state[i].model for i in idx], [opts[i] for i in idx], exact=exact, lr=config.lr
+        )
+        stacks.append(([state[i] for i in idx], net))
+
+    while True:
+        stacks = [_drop_finished(config, members, net) for members, net in stacks]
+        stacks = _merge_same_epoch([st for st in stacks if st[0]])
+        if not stacks:
+            break
+        members, net = min(stacks, key=lambda st: st[0][0].epoch)  # the lagging stack first
+        epoch = members[0].epoch
+        t0 = time.perf_counter()
+        train_errors = train_epoch_stacked(
+            net, s, m, [r.seed for r in members], epoch, config.batch_size
+        ).tolist()
+        seconds = time.perf_counter() - t0
+        for k, run in enumerate(members):
+            t1 = time.perf_counter()
+            net.load_into(k, run.model)
+            val_error = train_mod.model_error(run.model, vs, vm)  # train's, as train.train
+            improved, best = run.stopper.update(epoch, val_error)
+            run.elapsed += seconds + time.perf_counter() - t1
+            record = EpochRecord(
+                epoch, train_errors[k], val_error, improved, best, seconds, n / seconds, run.elapsed
+            )
+            run.history.append(record)
+            save_epoch(
+                run.out,
+                run.model,
+                net.optimizer_state(k),
+                epoch,
+                run.elapsed,
+                run.stopper,
+                run.history,
+            )
+            run.epoch += 1
+            if on_epoch is not None:
+                on_epoch(run.seed, record, run.stopper)
+    return [run.result for run in state]
+
+
+def _drop_finished(config: TrainConfig, members: list[_Run], net: StackedEncoders):
+    """Finish the runs that stop before their next epoch; the others stay in the stack."""
+    keep = []
+    for k, run in enumerate(members):
+        reason = stop_reason(config, run.stopper, run.epoch, run.elapsed)
+        if reason is None:
+            keep.append(k)
+        else:
+            run.result = finish_run(run.out, run.stopper, run.history, reason, run.elapsed)
+    if 0 < len(keep) < len(members):
+        net.select(keep)
+    return [members[k] for k in keep], net
+
+
+def _merge_same_epoch(stacks):
+    """Stacks whose seeds have reached the same epoch become one."""
+    by_epoch: dict[int, list] = {}
+    for st in stacks:
+        by_epoch.setdefault(st[0][0].epoch, []).append(st)
+    merged = []
+    for group in by_epoch.values():
+        if len(group) == 1:
+            merged.append(group[0])
+        else:
+            members = [r for mem, _ in group for r in mem]
+            merged.append((members, StackedEncoders.concat([net for _, net in group])))
+    return merged
+
+
+def train_seeds(
+    data: str | Path,
+    out: str | Path,
+    config: TrainConfig,
+    seeds: Sequence[int],
+    resume: bool = False,
+    on_epoch: OnEpoch | None = None,
+) -> list[TrainResult]:
+    """Train one model per seed into ``out/{world}__{model}__s{seed}`` run folders.
+
+    S and SM: all seeds at once in one stack (``train_runs``). Recurrent models: one seed
+    after another (``train.train``), into the same folders.
+    """
+    seeds = check_seeds(seeds)
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: exists and is not a folder")
+    world = load_database(data).meta["world"]["name"]
+    runs = [(seed, out / run_name(world, config.model, seed)) for seed in seeds]
+    if not ModelConfig(kind=config.model).recurrent:
+        return train_runs(data, runs, config, resume, on_epoch)
+    results = []
+    for seed, run_dir in runs:
+        callback = None if on_epoch is None else (lambda r, st, seed=seed: on_epoch(seed, r, st))
+        results.append(train_mod.train(data, run_dir, replace(config, seed=seed), resume, callback))
+    return results

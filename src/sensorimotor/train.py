@@ -289,27 +289,14 @@ def resolve_device(device: str) -> str:
     return device
 
 
-def train(
-    data: str | Path,
-    out: str | Path,
-    config: TrainConfig,
-    resume: bool = False,
-    on_epoch: Callable[[EpochRecord, EarlyStopping], None] | None = None,
-) -> TrainResult:
-    """Train one model on ``data`` into run folder ``out``; resumable after every epoch."""
-    out = Path(out)
-    data = Path(data)
-    device = resolve_device(config.device)
-    config = TrainConfig(**{**asdict(config), "device": device})
-    db = load_database(data)
-    check_trainable(db, config)
-    model_config = ModelConfig(kind=config.model)
-    meta = {
-        "model": model_config.to_dict(),
+def run_meta(data: Path, db: Database, config: TrainConfig, sha256: str | None = None) -> dict:
+    """What a run folder's ``config.json`` records: model, training config, data, version."""
+    return {
+        "model": ModelConfig(kind=config.model).to_dict(),
         "train": {k: v for k, v in asdict(config).items() if k != "device"},
         "data": {
             "path": str(data),
-            "sha256": file_hash(data),
+            "sha256": sha256 or file_hash(data),
             "world": db.meta["world"]["name"],
             "steps": len(db),
             "seed": db.meta.get("seed"),
@@ -317,9 +304,14 @@ def train(
         },
         "version": __version__,
     }
+
+
+def check_run_dir(out: Path, meta: dict, resume: bool) -> None:
+    """Refuse an ``out`` that is a file, that holds a run without ``resume``, or (with
+    ``resume``) a run of another model, training config or data."""
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: exists and is not a folder")
-    cfg_path, ckpt_path = out / "config.json", out / "checkpoint.pt"
+    cfg_path = out / "config.json"
     if cfg_path.exists() and not resume:
         raise InputError(
             f"{out}: already holds a run; pass --resume to continue it, or another --out"
@@ -333,99 +325,97 @@ def train(
             a, b = old.get(key, {}), meta[key]
             if key == "data":
                 a, b = a.get("sha256"), b["sha256"]
-            if key == "train":  # the caps may change between sessions; the algorithm may not
-                caps = ("max_epochs", "max_minutes")
-                a = {k: v for k, v in a.items() if k not in caps}
-                b = {k: v for k, v in b.items() if k not in caps}
             if a != b:
                 raise InputError(
                     f"{out}: --resume with a different {key} than the run was started with"
                 )
+
+
+def open_run_dir(out: Path, meta: dict) -> None:
+    """Create the run folder and write its ``config.json``."""
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise InputError(f"{out}: cannot create run folder ({err.strerror})") from None
-    _write_text(cfg_path, json.dumps(meta, indent=2))
+    _write_text(out / "config.json", json.dumps(meta, indent=2))
 
-    torch.set_num_threads(config.threads)
-    model = build_model(model_config, seed=config.seed).to(device)
-    opt = make_optimizer(model, config)
-    stopper = EarlyStopping(config.patience, config.min_ratio)
-    history: list[EpochRecord] = []
-    start_epoch, elapsed = 0, 0.0
-    if resume and ckpt_path.exists():
-        try:
-            ckpt = torch.load(ckpt_path, map_location=device, weights_only=True)
-            model.load_state_dict(ckpt["model"])
-            opt.load_state_dict(ckpt["optimizer"])
-            stopper = EarlyStopping(**ckpt["stopper"])
-            history = [EpochRecord(**r) for r in ckpt["history"]]
-            start_epoch, elapsed = ckpt["epoch"] + 1, ckpt["seconds"]
-        except Exception as err:
-            msg = str(err).splitlines()[0] if str(err) else err.__class__.__name__
-            raise InputError(f"{ckpt_path}: corrupt checkpoint ({msg})") from None
-        result_path = out / "result.json"
-        if result_path.exists():
-            res = json.loads(result_path.read_text())
-            if res["stopped"] == "early stopping":  # finished for good; a cap may be lifted
-                return TrainResult(
-                    out,
-                    res["best_epoch"],
-                    res["best_val_error"],
-                    res["epochs"],
-                    res["stopped"],
-                    res["seconds"],
-                    history,
-                )
 
-    s, m = split_tensors(db, "train", device)
-    vs, vm = split_tensors(db, "val", device)
-    n = len(s) - 1
-    stopped = "max epochs"
-    epoch = start_epoch
-    while True:
-        if stopper.should_stop:
-            stopped = "early stopping"
-            break
-        if config.max_epochs is not None and epoch >= config.max_epochs:
-            stopped = "max epochs"
-            break
-        if config.max_minutes is not None and elapsed >= 60 * config.max_minutes:
-            stopped = "time cap"
-            break
-        t0 = time.perf_counter()
-        model.train()
-        if model_config.recurrent:
-            train_error = train_epoch_recurrent(model, opt, s, m, config.batch_size, config.horizon)
-        else:
-            gen = epoch_generator(config.seed, epoch)
-            train_error = train_epoch_feedforward(model, opt, s, m, config.batch_size, gen)
-        seconds = time.perf_counter() - t0
-        val_error = model_error(model, vs, vm)
-        improved, best = stopper.update(epoch, val_error)
-        elapsed += time.perf_counter() - t0
-        record = EpochRecord(
-            epoch, train_error, val_error, improved, best, seconds, n / seconds, elapsed
-        )
-        history.append(record)
-        if best:
-            _torch_save(model.state_dict(), out / "model.pt")
-        _torch_save(
-            {
-                "model": model.state_dict(),
-                "optimizer": opt.state_dict(),
-                "epoch": epoch,
-                "seconds": elapsed,
-                "stopper": asdict(stopper),
-                "history": [asdict(r) for r in history],
-            },
-            ckpt_path,
-        )
-        _write_text(out / "history.csv", _history_csv(history))
-        if on_epoch is not None:
-            on_epoch(record, stopper)
-        epoch += 1
+def load_checkpoint(
+    out: Path, device: str, model: torch.nn.Module, opt: FusedAdam
+) -> tuple[EarlyStopping, list[EpochRecord], int, float]:
+    """Restore ``model`` and ``opt`` from ``out/checkpoint.pt``; returns (stopper, history,
+    next epoch, training seconds so far). InputError naming the file if it is corrupt."""
+    ckpt_path = out / "checkpoint.pt"
+    try:
+        ckpt = torch.load(ckpt_path, map_location=device, weights_only=True)
+        model.load_state_dict(ckpt["model"])
+        opt.load_state_dict(ckpt["optimizer"])
+        stopper = EarlyStopping(**ckpt["stopper"])
+        history = [EpochRecord(**r) for r in ckpt["history"]]
+        return stopper, history, ckpt["epoch"] + 1, ckpt["seconds"]
+    except Exception as err:
+        msg = str(err).splitlines()[0] if str(err) else err.__class__.__name__
+        raise InputError(f"{ckpt_path}: corrupt checkpoint ({msg})") from None
 
+
+def stored_result(out: Path, history: list[EpochRecord]) -> TrainResult | None:
+    """The result of a run that has already finished (its ``result.json``), else None."""
+    result_path = out / "result.json"
+    if not result_path.exists():
+        return None
+    res = json.loads(result_path.read_text())
+    return TrainResult(
+        out,
+        res["best_epoch"],
+        res["best_val_error"],
+        res["epochs"],
+        res["stopped"],
+        res["seconds"],
+        history,
+    )
+
+
+def stop_reason(config: TrainConfig, stopper: EarlyStopping, epoch: int, elapsed: float):
+    """Why training stops before ``epoch`` (None: it goes on), checked before every epoch."""
+    if stopper.should_stop:
+        return "early stopping"
+    if config.max_epochs is not None and epoch >= config.max_epochs:
+        return "max epochs"
+    if config.max_minutes is not None and elapsed >= 60 * config.max_minutes:
+        return "time cap"
+    return None
+
+
+def save_epoch(
+    out: Path,
+    model: torch.nn.Module,
+    opt_state: dict,
+    epoch: int,
+    elapsed: float,
+    stopper: EarlyStopping,
+    history: list[EpochRecord],
+) -> None:
+    """After an epoch: ``model.pt`` if it is the best so far, ``checkpoint.pt``, ``history.csv``."""
+    if history[-1].best:
+        _torch_save(model.state_dict(), out / "model.pt")
+    _torch_save(
+        {
+            "model": model.state_dict(),
+            "optimizer": opt_state,
+            "epoch": epoch,
+            "seconds": elapsed,
+            "stopper": asdict(stopper),
+            "history": [asdict(r) for r in history],
+        },
+        out / "checkpoint.pt",
+    )
+    _write_text(out / "history.csv", _history_csv(history))
+
+
+def finish_run(
+    out: Path, stopper: EarlyStopping, history: list[EpochRecord], stopped: str, elapsed: float
+) -> TrainResult:
+    """Write ``result.json``: the run is finished."""
     result = TrainResult(
         out, stopper.best_epoch, stopper.lowest, len(history), stopped, elapsed, history
     )
@@ -443,3 +433,70 @@ def train(
         ),
     )
     return result
+
+
+def train(
+    data: str | Path,
+    out: str | Path,
+    config: TrainConfig,
+    resume: bool = False,
+    on_epoch: Callable[[EpochRecord, EarlyStopping], None] | None = None,
+) -> TrainResult:
+    """Train one model on ``data`` into run folder ``out``; resumable after every epoch.
+
+    S and SM go through ``stacked.train_runs`` (a stack of one, hand-written backward pass):
+    the same numbers, bit for bit, as ``train_epoch_feedforward`` with autograd, faster.
+    """
+    if config.model in ("s", "sm"):
+        from sensorimotor.stacked import train_runs
+
+        callback = None if on_epoch is None else (lambda _seed, r, st: on_epoch(r, st))
+        return train_runs(data, [(config.seed, out)], config, resume, callback, exact=True)[0]
+    out = Path(out)
+    data = Path(data)
+    device = resolve_device(config.device)
+    config = TrainConfig(**{**asdict(config), "device": device})
+    db = load_database(data)
+    check_trainable(db, config)
+    model_config = ModelConfig(kind=config.model)
+    meta = run_meta(data, db, config)
+    check_run_dir(out, meta, resume)
+    open_run_dir(out, meta)
+
+    torch.set_num_threads(config.threads)
+    model = build_model(model_config, seed=config.seed).to(device)
+    opt = make_optimizer(model, config)
+    stopper = EarlyStopping(config.patience, config.min_ratio)
+    history: list[EpochRecord] = []
+    start_epoch, elapsed = 0, 0.0
+    if resume and (out / "checkpoint.pt").exists():
+        stopper, history, start_epoch, elapsed = load_checkpoint(out, device, model, opt)
+        done = stored_result(out, history)
+        if done is not None:
+            return done
+
+    s, m = split_tensors(db, "train", device)
+    vs, vm = split_tensors(db, "val", device)
+    n = len(s) - 1
+    epoch = start_epoch
+    while (stopped := stop_reason(config, stopper, epoch, elapsed)) is None:
+        t0 = time.perf_counter()
+        model.train()
+        if model_config.recurrent:
+            train_error = train_epoch_recurrent(model, opt, s, m, config.batch_size, config.horizon)
+        else:
+            gen = epoch_generator(config.seed, epoch)
+            train_error = train_epoch_feedforward(model, opt, s, m, config.batch_size, gen)
+        seconds = time.perf_counter() - t0
+        val_error = model_error(model, vs, vm)
+        improved, best = stopper.update(epoch, val_error)
+        elapsed += time.perf_counter() - t0
+        record = EpochRecord(
+            epoch, train_error, val_error, improved, best, seconds, n / seconds, elapsed
+        )
+        history.append(record)
+        save_epoch(out, model, opt.state_dict(), epoch, elapsed, stopper, history)
+        if on_epoch is not None:
+            on_epoch(record, stopper)
+        epoch += 1
+    return finish_run(out, stopper, history, stopped, elapsed)
