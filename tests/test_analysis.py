@@ -242,7 +242,7 @@ def test_cli_analyze_raw_writes_figures_and_metrics(cli, square_db_path, tmp_pat
     assert proc.returncode == 0, proc.stderr
     assert "corner in view" in proc.stdout
     assert "KNN-MSE" in proc.stdout
-    assert sorted(p.name for p in out.iterdir()) == ["clusters.png", "metrics.json", "pca.png"]
+    assert sorted(p.name for p in out.iterdir()) == ["clusters.png", "metrics.json", "pca.npz", "pca.png"]
     m = json.loads((out / "metrics.json").read_text())
     assert m["run"] == "raw"
     assert m["fit_analysis"] is None
@@ -255,7 +255,7 @@ def test_analyze_transfer_fits_on_one_world_and_applies_to_another(
 ):
     res = an.analyze_files("raw", rooms1_db_path, tmp_path / "t", fit_data=square_db_path)
     names = sorted(p.name for p in (tmp_path / "t").iterdir())
-    assert names == ["clusters.png", "clusters_fit.png", "metrics.json", "pca.png"]
+    assert names == ["clusters.png", "clusters_fit.png", "metrics.json", "pca.npz", "pca.png"]
     m = res.metrics
     assert m["fit_analysis"]["world"] == "square"
     assert not m["fit_analysis"]["transfer"]

@@ -103,6 +103,14 @@ def train(
     max_minutes: Annotated[float | None, typer.Option(help="Cap on training minutes.")] = None,
     device: Annotated[str, typer.Option(help="auto, cpu or cuda.")] = "cpu",
     resume: Annotated[bool, typer.Option(help="Continue the run in --out from its last epoch.")] = False,
+    seeds: Annotated[
+        str | None,
+        typer.Option(
+            help="Train several seeds, e.g. 0,1,2,3,4 (s, sm: at once, stacked; rec-s, rec-sm: "
+            "one after another). --out is then a parent folder of {world}__{model}__s{seed} "
+            "run folders."
+        ),
+    ] = None,
 ) -> None:
     """Train one encoder by predicting the next reading (Adam, batch 64, early stopping)."""
     from sensorimotor.models import MODEL_NAMES
@@ -110,6 +118,9 @@ def train(
     from sensorimotor.train import train as train_run
 
     _check_model(model)
+    seed_list = None if seeds is None else _parse_seeds(seeds)
+    if seed_list is not None and seed != 0:
+        raise InputError("--seed and --seeds: give one or the other")
     if max_epochs is not None and max_epochs < 1:
         raise InputError(f"--max-epochs must be at least 1, got {max_epochs}")
     if max_minutes is not None and not max_minutes > 0:
@@ -132,11 +143,62 @@ def train(
         )
 
     started: list[bool] = []
+    if seed_list is not None:
+        _train_seeds(model, data, out, config, seed_list, resume)
+        return
     result = train_run(data, out, config, resume=resume, on_epoch=on_epoch)
     err_console.print(
         f"done: {result.stopped} after {result.epochs} epochs, best validation error "
         f"{result.best_val_error:.6f} at epoch {result.best_epoch} ({result.seconds:.0f} s)"
     )
+
+
+def _parse_seeds(text: str) -> list[int]:
+    """``--seeds 0,1,2``: integers separated by commas, at least one, none twice."""
+    from sensorimotor.stacked import check_seeds
+
+    if not text.strip():
+        raise InputError("--seeds: give at least one seed, e.g. 0,1,2,3,4")
+    values = []
+    for item in text.split(","):
+        try:
+            values.append(int(item.strip()))
+        except ValueError:
+            raise InputError(
+                f"--seeds: {item.strip()!r} is not an integer (e.g. 0,1,2,3,4)"
+            ) from None
+    return check_seeds(values)
+
+
+def _train_seeds(model: str, data: Path, out: Path, config, seeds: list[int], resume: bool) -> None:
+    """`train --seeds`: one run folder per seed under OUT, a line per seed and epoch."""
+    from sensorimotor.models import MODEL_NAMES
+    from sensorimotor.stacked import train_seeds
+
+    started: list[bool] = []
+
+    def on_epoch(seed, r, stopper) -> None:
+        if not started:  # the header waits for the first epoch: input errors stay one line
+            started.append(True)
+            how = "stacked" if model in ("s", "sm") else "one after another"
+            err_console.print(
+                f"training {MODEL_NAMES[model]} on {data}, seeds {','.join(map(str, seeds))} "
+                f"({how}) -> {out}"
+            )
+        mark = "*" if r.improved else " "
+        err_console.print(
+            f"s{seed} epoch {r.epoch:3d}{mark} train {r.train_error:.5f}  val {r.val_error:.5f}  "
+            f"best {stopper.lowest:.5f} (epoch {stopper.best_epoch})  "
+            f"{r.samples_per_s / 1e3:,.0f} k samples/s  {r.seconds:.1f} s  "
+            f"patience {stopper.patience - stopper.waited}"
+        )
+
+    results = train_seeds(data, out, config, seeds, resume=resume, on_epoch=on_epoch)
+    for seed, result in zip(seeds, results, strict=True):
+        err_console.print(
+            f"done s{seed}: {result.stopped} after {result.epochs} epochs, best validation error "
+            f"{result.best_val_error:.6f} at epoch {result.best_epoch} -> {result.run_dir}"
+        )
 
 
 @app.command()

@@ -19,12 +19,12 @@ and best weights, and gets a run folder identical to a single-seed run. A seed t
 leaves the stack (it costs nothing more), and no seed's numbers depend on which seeds share
 its stack (every operation treats the seeds independently; tests check it bit for bit).
 
-Two layouts. ``exact=True`` stores every weight as ``nn.Linear`` does, ``(K, out, in)``, and
-calls the products autograd calls, so a stack of one gives bit for bit the weights of the
-``nn.Module`` trained with autograd (``train.train_epoch_feedforward``); ``train.train`` uses it.
-``exact=False`` (stacks of seeds) stores widening layers as ``(K, in, out)``, whose products
-the BLAS runs two to four times faster: the same algebra, summed in another order, so it agrees
-with autograd to float rounding (~1e-7 a step) rather than bit for bit.
+The products are those autograd runs for ``nn.Linear``, with the same operand layouts (the
+weight kept as ``(K, out, in)``), so every seed gets bit for bit the weights of its
+``nn.Module`` trained alone with autograd (``train.train_epoch_feedforward``); tests check it.
+Other layouts run some products two to four times faster in the BLAS but sum in another
+order, and Adam turns that rounding into visible drift (a weight whose gradient is nearly
+zero moves by up to the learning rate): measured, the stack gained 5 to 20 %, not worth it.
 """
 
 from __future__ import annotations
@@ -97,9 +97,9 @@ def linear_names(config: ModelConfig) -> list[str]:
 class StackedEncoders:
     """K feed-forward encoders of one kind (S or SM): weights, gradients and Adam state.
 
-    ``params`` follows ``SensorimotorEncoder.parameters()``: for every ``nn.Linear`` its weight,
-    ``(K, out, in)`` or, where ``transposed[i]``, ``(K, in, out)``, then its bias
-    ``(K, 1, out)``. ``grads`` are preallocated alike; all seeds have taken ``step`` Adam steps.
+    ``params`` follows ``SensorimotorEncoder.parameters()``: for every ``nn.Linear`` its weight
+    ``(K, out, in)`` then its bias ``(K, 1, out)``. ``grads`` are preallocated alike; all
+    seeds have taken ``step`` Adam steps.
     """
 
     def __init__(
@@ -109,15 +109,13 @@ class StackedEncoders:
         exp_avg: list[torch.Tensor],
         exp_avg_sq: list[torch.Tensor],
         step: float,
-        exact: bool,
         lr: float = 1e-3,
     ):
         if config.recurrent:
             raise ValueError(f"stacked training is for s and sm, not {config.kind}")
-        self.config, self.exact, self.lr = config, exact, lr
+        self.config, self.lr = config, lr
         self.params, self.exp_avg, self.exp_avg_sq = params, exp_avg, exp_avg_sq
         self.step = torch.full((), float(step), device=params[0].device)  # float32, as FusedAdam
-        self.transposed = transposed_layers(config, exact)
         self.chains: dict[str, list[int]] = {}  # "sensor_encoder" -> its layers, in order
         for i, name in enumerate(linear_names(config)):
             self.chains.setdefault(name.split(".")[0], []).append(i)
@@ -132,42 +130,35 @@ class StackedEncoders:
         cls,
         models: Sequence[SensorimotorEncoder],
         optimizers: Sequence[FusedAdam] | None = None,
-        exact: bool = False,
         lr: float = 1e-3,
     ) -> StackedEncoders:
         """Stack ``models`` (one feed-forward kind) and, if given, their ``FusedAdam`` states."""
         config = models[0].config
-        transposed = transposed_layers(config, exact)
 
         def stack(per_model: list[list[torch.Tensor]]) -> list[torch.Tensor]:
             out = []
-            for i, tensors in enumerate(zip(*per_model, strict=True)):
-                if i % 2 == 0:  # weight (out, in)
-                    t = torch.stack([w.t() if transposed[i // 2] else w for w in tensors])
-                else:  # bias (out,)
-                    t = torch.stack(tensors)[:, None, :]
-                out.append(t.detach().contiguous())
+            for tensors in zip(*per_model, strict=True):
+                t = torch.stack([x.detach() for x in tensors])  # (K, out, in) | (K, out)
+                out.append(t if t.dim() == 3 else t[:, None, :].contiguous())
             return out
 
         params = stack([list(m.parameters()) for m in models])
         if optimizers is None:
             zeros = [torch.zeros_like(p) for p in params]
-            return cls(config, params, zeros, [z.clone() for z in zeros], 0, exact, lr)
+            return cls(config, params, zeros, [z.clone() for z in zeros], 0, lr)
         steps = {float(opt.steps[0]) for opt in optimizers}
         if len(steps) != 1:
             raise ValueError(f"seeds at different Adam steps cannot share a stack: {steps}")
         exp_avg = stack([opt.exp_avg for opt in optimizers])
         exp_avg_sq = stack([opt.exp_avg_sq for opt in optimizers])
-        return cls(config, params, exp_avg, exp_avg_sq, steps.pop(), exact, lr)
+        return cls(config, params, exp_avg, exp_avg_sq, steps.pop(), lr)
 
     def _prepare(self) -> None:
         """Gradient buffers, the weight views of each product, and Adam's tensor lists."""
         self.grads = [torch.empty_like(p) for p in self.params]
-        # per layer: (forward operand (K, in, out), backward operand for dh, bias, transposed)
-        self.layers = []
-        for i, tr in enumerate(self.transposed):
-            w, b = self.params[2 * i], self.params[2 * i + 1]
-            self.layers.append((w if tr else w.mT, w.mT if tr else w, b, tr))
+        # per layer: weight (K, out, in), its transpose (K, in, out) (a view), bias (K, 1, out)
+        ws, bs = self.params[0::2], self.params[1::2]
+        self.layers = [(w, w.mT, b) for w, b in zip(ws, bs, strict=True)]
         self._adam = [self._adam_lists(t) for t in (self.params, self.grads)]
         self._adam += [self._adam_lists(t) for t in (self.exp_avg, self.exp_avg_sq)]
 
@@ -226,7 +217,6 @@ class StackedEncoders:
             cat("exp_avg"),
             cat("exp_avg_sq"),
             float(first.step),
-            first.exact,
             first.lr,
         )
 
@@ -237,9 +227,8 @@ class StackedEncoders:
         for i, t in enumerate(tensors):
             if i % 2:  # bias (K, 1, out)
                 out.append(t[k, 0].clone())
-            else:  # weight (K, out, in) or (K, in, out)
-                w = t[k].t() if self.transposed[i // 2] else t[k]
-                out.append(w.clone(memory_format=torch.contiguous_format))
+            else:  # weight (K, out, in)
+                out.append(t[k].clone())
         return out
 
     def load_into(self, k: int, model: SensorimotorEncoder) -> SensorimotorEncoder:
@@ -264,8 +253,8 @@ class StackedEncoders:
         hs = [h]
         layers = self.chains[chain]
         for i in layers:
-            w_fwd, _, b, _ = plan[i]
-            h = torch.baddbmm(b, h, w_fwd)  # (K, B, out)
+            _, w_t, b = plan[i]
+            h = torch.baddbmm(b, h, w_t)  # (K, B, out) = b + h W^T, as F.linear
             if i != layers[-1]:
                 h = h.relu_()
             hs.append(h)
@@ -276,17 +265,14 @@ class StackedEncoders:
         layers = self.chains[chain]
         for j in range(len(layers) - 1, -1, -1):
             i = layers[j]
-            _, w_bwd, _, tr = plan[i]
-            h = hs[j]  # (K, B, in), input of layer i
-            if tr:
-                torch.bmm(h.mT, dy, out=grads[2 * i])  # (K, in, out)
-            else:
-                torch.bmm(dy.mT, h, out=grads[2 * i])  # (K, out, in)
+            w = plan[i][0]  # (K, out, in)
+            h = hs[j]  # (K, B, in): input of layer i
+            torch.bmm(dy.mT, h, out=grads[2 * i])  # (K, out, in) = dy^T h
             torch.sum(dy, 1, keepdim=True, out=grads[2 * i + 1])  # (K, 1, out)
             if j:
-                dy = RELU_GRAD(torch.bmm(dy, w_bwd), h, 0)  # (K, B, in); h is a ReLU output
+                dy = RELU_GRAD(torch.bmm(dy, w), h, 0)  # (K, B, in); h is a ReLU output
             elif input_grad:
-                return torch.bmm(dy, w_bwd)  # (K, B, in)
+                return torch.bmm(dy, w)  # (K, B, in)
         return None
 
     def forward_backward(
@@ -304,7 +290,7 @@ class StackedEncoders:
             self._forward_backward(self.layers, self.grads, xs, xm, y, sq_sum)
             return
         for k in range(self.k):
-            plan = [tuple(t[k : k + 1] for t in layer[:3]) + layer[3:] for layer in self.layers]
+            plan = [tuple(t[k : k + 1] for t in layer) for layer in self.layers]
             grads = [g[k : k + 1] for g in self.grads]
             xm_k = None if xm is None else xm[k : k + 1]
             self._forward_backward(
@@ -336,14 +322,6 @@ class StackedEncoders:
         if self.config.uses_motors:
             z = torch.cat([z, self._forward(self.layers, "motor_encoder", xm)[-1]], dim=-1)
         return self._forward(self.layers, "predictor", z)[-1]
-
-
-def transposed_layers(config: ModelConfig, exact: bool) -> list[bool]:
-    """Which layers store their weight as (in, out): none when exact, else the widening ones."""
-    with torch.device("meta"):
-        model = SensorimotorEncoder(config)
-    linears = [mod for mod in model.modules() if isinstance(mod, torch.nn.Linear)]
-    return [not exact and mod.out_features > mod.in_features for mod in linears]
 
 
 # --- one epoch -----------------------------------------------------------------------------
@@ -415,7 +393,6 @@ def train_runs(
     config: TrainConfig,
     resume: bool = False,
     on_epoch: OnEpoch | None = None,
-    exact: bool = False,
 ) -> list[TrainResult]:
     """Train S or SM once per ``(seed, run folder)`` in ``runs``, all seeds in one stack.
 
@@ -471,7 +448,7 @@ def train_runs(
             by_epoch.setdefault(run.epoch, []).append(i)
     for idx in by_epoch.values():
         net = StackedEncoders.from_models(
-            [state[i].model for i in idx], [opts[i] for i in idx], exact=exact, lr=config.lr
+            [state[i].model for i in idx], [opts[i] for i in idx], lr=config.lr
         )
         stacks.append(([state[i] for i in idx], net))
 

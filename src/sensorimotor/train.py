@@ -325,6 +325,10 @@ def check_run_dir(out: Path, meta: dict, resume: bool) -> None:
             a, b = old.get(key, {}), meta[key]
             if key == "data":
                 a, b = a.get("sha256"), b["sha256"]
+            if key == "train":  # the caps may change between sessions; the algorithm may not
+                caps = ("max_epochs", "max_minutes")
+                a = {k: v for k, v in a.items() if k not in caps}
+                b = {k: v for k, v in b.items() if k not in caps}
             if a != b:
                 raise InputError(
                     f"{out}: --resume with a different {key} than the run was started with"
@@ -359,11 +363,14 @@ def load_checkpoint(
 
 
 def stored_result(out: Path, history: list[EpochRecord]) -> TrainResult | None:
-    """The result of a run that has already finished (its ``result.json``), else None."""
+    """The result of a run that early stopping has finished for good (its ``result.json``);
+    None if it has none or was stopped by a cap, which a resumed session may lift."""
     result_path = out / "result.json"
     if not result_path.exists():
         return None
     res = json.loads(result_path.read_text())
+    if res["stopped"] != "early stopping":
+        return None
     return TrainResult(
         out,
         res["best_epoch"],
@@ -451,7 +458,7 @@ def train(
         from sensorimotor.stacked import train_runs
 
         callback = None if on_epoch is None else (lambda _seed, r, st: on_epoch(r, st))
-        return train_runs(data, [(config.seed, out)], config, resume, callback, exact=True)[0]
+        return train_runs(data, [(config.seed, out)], config, resume, callback)[0]
     out = Path(out)
     data = Path(data)
     device = resolve_device(config.device)

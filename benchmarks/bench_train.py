@@ -1,0 +1,213 @@
+"""Benchmark of training throughput at batch 64 on the CPU, one torch thread per process.
+
+For S and SM: the plain eager loop (``train.train_epoch_feedforward``: nn.Module, autograd,
+``train.FusedAdam``) beside the stacked path (``stacked.train_epoch_stacked``) with K = 1, 5
+and 10 seeds at once. For Rec-S and Rec-SM: the plain loop (``train.train_epoch_recurrent``)
+in one process, and two worker processes training independent seeds at the same time. Every
+ratio is to the plain loop measured in the same run; the time of one epoch over an
+800,000-step train split (a 1 M-step database) is extrapolated from the samples/s.
+
+The data are a generated Square database. Each measurement is the best of a few repeats of a
+fixed number of batches after a warm-up. Wall-clock numbers move with the machine's load,
+printed above and below the table; the cpu-time column (this process's own CPU seconds) moves
+less. Run by hand: ``.venv/bin/python benchmarks/bench_train.py [--quick]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import multiprocessing as mp
+import os
+import time
+
+import torch
+from rich.console import Console
+from rich.table import Table
+
+from sensorimotor import __version__
+from sensorimotor.data import generate, scale_motors, scale_sensors
+from sensorimotor.models import build_model
+from sensorimotor.stacked import StackedEncoders, train_epoch_stacked
+from sensorimotor.train import (
+    FusedAdam,
+    epoch_generator,
+    train_epoch_feedforward,
+    train_epoch_recurrent,
+)
+from sensorimotor.world import load_world
+
+BATCH, HORIZON = 64, 20
+EPOCH_STEPS = 800_000  # train split of a 1 M-step database
+TARGETS = {"s": 190e3, "sm": 130e3, "rec-s": 320e3, "rec-sm": 320e3}  # samples/s
+STACK_TARGET = 3.0  # five stacked seeds: total samples/s over that of one
+NAMES = {"s": "S", "sm": "SM", "rec-s": "Rec-S", "rec-sm": "Rec-SM"}
+
+
+def train_split(n: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """Scaled sensors (n + 1, 5) and motors (n + 1, 2) of a generated Square database."""
+    db = generate(load_world("square"), n + 1, seed=0)
+    s = torch.from_numpy(scale_sensors(db.sensors, db.max_range))
+    return s, torch.from_numpy(scale_motors(db.motors))
+
+
+def timed(fn, repeats: int) -> tuple[float, float]:
+    """Best wall and best CPU seconds of ``repeats`` calls of ``fn(i)``."""
+    walls, cpus = [], []
+    for i in range(repeats):
+        t0, c0 = time.perf_counter(), time.process_time()
+        fn(i)
+        walls.append(time.perf_counter() - t0)
+        cpus.append(time.process_time() - c0)
+    return min(walls), min(cpus)
+
+
+def bench_plain_ff(kind, s, m, warm, repeats):
+    model = build_model(kind, seed=0)
+    opt = FusedAdam(model.parameters())
+    train_epoch_feedforward(model, opt, *warm, BATCH, epoch_generator(0, 99))
+    return timed(
+        lambda i: train_epoch_feedforward(model, opt, s, m, BATCH, epoch_generator(0, i)), repeats
+    )
+
+
+def bench_stacked(kind, k, s, m, warm, repeats):
+    seeds = list(range(k))
+    net = StackedEncoders.from_models([build_model(kind, seed=sd) for sd in seeds])
+    train_epoch_stacked(net, *warm, seeds, 99, BATCH)
+    return timed(lambda i: train_epoch_stacked(net, s, m, seeds, i, BATCH), repeats)
+
+
+def bench_plain_rec(kind, s, m, warm, repeats, seed=0):
+    model = build_model(kind, seed=seed)
+    opt = FusedAdam(model.parameters())
+    train_epoch_recurrent(model, opt, *warm, BATCH, HORIZON)
+    return timed(lambda i: train_epoch_recurrent(model, opt, s, m, BATCH, HORIZON), repeats)
+
+
+def _rec_worker(kind, seed, n, warm_n, barrier, results):
+    """One of the parallel processes: one thread, its own seed, timed from a common start."""
+    torch.set_num_threads(1)
+    s, m = train_split(n)
+    warm = (s[: warm_n + 1], m[: warm_n + 1])
+    model = build_model(kind, seed=seed)
+    opt = FusedAdam(model.parameters())
+    train_epoch_recurrent(model, opt, *warm, BATCH, HORIZON)
+    barrier.wait()
+    t0 = time.perf_counter()
+    train_epoch_recurrent(model, opt, s, m, BATCH, HORIZON)
+    results.put((n, time.perf_counter() - t0))
+
+
+def bench_rec_workers(kind, n, warm_n, workers: int, repeats: int) -> float:
+    """Total samples/s of ``workers`` spawned processes training seeds 0, 1, ... at once."""
+    ctx = mp.get_context("spawn")
+    best = 0.0
+    for _ in range(repeats):
+        barrier, results = ctx.Barrier(workers), ctx.Queue()
+        procs = [
+            ctx.Process(target=_rec_worker, args=(kind, w, n, warm_n, barrier, results))
+            for w in range(workers)
+        ]
+        for p in procs:
+            p.start()
+        done = [results.get() for _ in procs]
+        for p in procs:
+            p.join()
+        best = max(best, sum(k for k, _ in done) / max(t for _, t in done))
+    return best
+
+
+def load() -> str:
+    one, five, _ = os.getloadavg()
+    return f"load average {one:.2f} (1 min), {five:.2f} (5 min) on {os.cpu_count()} cores"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="short run: fewer batches, 1 repeat")
+    parser.add_argument("--batches", type=int, default=None, help="timed batches per measure")
+    parser.add_argument("--repeats", type=int, default=None, help="repeats; the best counts")
+    args = parser.parse_args()
+    batches = args.batches or (300 if args.quick else 1500)
+    repeats = args.repeats or (1 if args.quick else 3)
+    torch.set_num_threads(1)
+    console = Console(width=150)
+    console.print(
+        f"sensorimotor {__version__}, torch {torch.__version__}, batch {BATCH}, 1 thread, "
+        f"{batches} batches a measure (best of {repeats}), {torch.backends.cpu.get_cpu_capability()}"
+    )
+    console.print(f"before: {load()}")
+
+    n = batches * BATCH
+    s, m = train_split(n)
+    warm = (s[: 20 * BATCH + 1], m[: 20 * BATCH + 1])
+    table = Table(title="Training throughput (samples/s; wall clock unless marked)")
+    for col in (
+        "model",
+        "path",
+        "per seed",
+        "total",
+        "total (cpu time)",
+        "vs plain",
+        "800k epoch",
+        "target",
+    ):
+        table.add_column(col, justify="left" if col in ("model", "path", "target") else "right")
+
+    def row(kind, path, per_seed, total, cpu_total, plain, target=""):
+        table.add_row(
+            NAMES[kind],
+            path,
+            f"{per_seed / 1e3:,.0f} k",
+            f"{total / 1e3:,.0f} k",
+            "" if cpu_total is None else f"{cpu_total / 1e3:,.0f} k",
+            f"{total / plain:.2f}x",
+            f"{EPOCH_STEPS / per_seed:.1f} s",
+            target,
+        )
+
+    for kind in ("s", "sm"):
+        wall, cpu = bench_plain_ff(kind, s, m, warm, repeats)
+        plain = n / wall
+        row(kind, "plain loop (autograd)", plain, plain, n / cpu, plain)
+        one = None
+        for k in (1, 5, 10):
+            wall, cpu = bench_stacked(kind, k, s, m, warm, repeats)
+            per_seed = n / wall
+            total = k * per_seed
+            if k == 1:
+                one = total
+                met = "met" if total >= TARGETS[kind] else "NOT met"
+                target = f">= {TARGETS[kind] / 1e3:.0f} k: {met}"
+            elif k == 5:
+                ratio = total / one
+                met = "met" if ratio >= STACK_TARGET else "NOT met"
+                target = f"{ratio:.2f}x one (>= {STACK_TARGET:.0f}x): {met}"
+            else:
+                target = f"{total / one:.2f}x one"
+            row(kind, f"stacked, K = {k}", per_seed, total, k * n / cpu, plain, target)
+        console.print(f"  {kind} done ({load()})")
+
+    rec_n = max(batches, 200) * BATCH  # at least 10 chunks of 20 steps in every stream
+    rs, rm = train_split(rec_n)
+    rwarm = (rs[: 2 * HORIZON * BATCH + 1], rm[: 2 * HORIZON * BATCH + 1])
+    for kind in ("rec-s", "rec-sm"):
+        wall, cpu = bench_plain_rec(kind, rs, rm, rwarm, repeats)
+        plain = rec_n / wall
+        row(kind, "plain loop, 1 process", plain, plain, rec_n / cpu, plain)
+        total = bench_rec_workers(kind, rec_n, 2 * HORIZON * BATCH, 2, repeats)
+        met = "met" if total >= TARGETS[kind] else "NOT met"
+        target = f">= {TARGETS[kind] / 1e3:.0f} k: {met}"
+        row(kind, "2 processes x 1 thread", total / 2, total, None, plain, target)
+        console.print(f"  {kind} done ({load()})")
+
+    console.print(table)
+    console.print(f"after: {load()}")
+    console.print(
+        "per seed: samples/s of each seed; total: of all seeds (or processes) together; "
+        "800k epoch: one epoch of every seed over 800,000 steps at the per-seed rate."
+    )
+
+
+if __name__ == "__main__":
+    main()

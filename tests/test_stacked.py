@@ -1,0 +1,329 @@
+"""Stacked training of S and SM: K seeds at once give, bit for bit, what each seed gives alone
+with the reference loop of train.py (nn.Module, autograd, FusedAdam), down to early stopping,
+run folders and resume."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+import torch
+
+import sensorimotor.train as train_mod
+from conftest import assert_one_line_error
+from sensorimotor.data import load_database
+from sensorimotor.evaluate import load_run, model_error, split_tensors
+from sensorimotor.models import build_model
+from sensorimotor.stacked import StackedEncoders, run_name, train_epoch_stacked, train_seeds
+from sensorimotor.train import (
+    EarlyStopping,
+    FusedAdam,
+    TrainConfig,
+    epoch_generator,
+    train,
+    train_epoch_feedforward,
+)
+
+
+@pytest.fixture(autouse=True)
+def one_thread():
+    """Training runs on one thread (TrainConfig.threads); so do the references here."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
+def _equal(a: dict, b: dict) -> bool:
+    return a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+
+
+def _plain_run(db_path, kind: str, seed: int, config: TrainConfig) -> dict:
+    """One seed trained by the reference loop: train_epoch_feedforward and early stopping."""
+    db = load_database(db_path)
+    s, m = split_tensors(db, "train")
+    vs, vm = split_tensors(db, "val")
+    model = build_model(kind, seed=seed)
+    opt = FusedAdam(model.parameters(), lr=config.lr)
+    stopper = EarlyStopping(config.patience, config.min_ratio)
+    best, vals, epoch = None, [], 0
+    while not stopper.should_stop and (config.max_epochs is None or epoch < config.max_epochs):
+        gen = epoch_generator(seed, epoch)
+        train_epoch_feedforward(model, opt, s, m, config.batch_size, gen)
+        vals.append(model_error(model, vs, vm))
+        if stopper.update(epoch, vals[-1])[1]:
+            best = {k: v.clone() for k, v in model.state_dict().items()}
+        epoch += 1
+    return {"best": best, "final": model.state_dict(), "epochs": epoch, "vals": vals, "opt": opt}
+
+
+# --- the hand-written backward pass and one epoch ------------------------------------------
+
+
+@pytest.mark.parametrize("kind", ["s", "sm"])
+@pytest.mark.parametrize("batch", [64, 37])  # 37: the last, partial batch of an epoch
+def test_gradients_equal_autograd_bit_for_bit(kind, batch):
+    seeds = [3, 1, 4]
+    models = [build_model(kind, seed=sd) for sd in seeds]
+    net = StackedEncoders.from_models(models)
+    g = torch.Generator().manual_seed(0)
+    xs, xm, y = (torch.rand(3, batch, d, generator=g) for d in (5, 2, 5))
+    sq_sum = torch.zeros(3, 1, 1)
+    with torch.no_grad():
+        net.forward_backward(xs, xm if kind == "sm" else None, y, sq_sum)
+    for k, model in enumerate(models):
+        pred, _, _ = model(xs[k], xm[k])
+        loss = ((pred - y[k]) ** 2).sum(-1).mean()
+        loss.backward()
+        mine = net._per_seed(net.grads, k)
+        for (name, p), gk in zip(model.named_parameters(), mine, strict=True):
+            assert torch.equal(p.grad, gk), name
+        assert torch.allclose(sq_sum[k, 0, 0] / batch, loss.detach(), rtol=1e-6)
+
+
+@pytest.mark.parametrize("kind", ["s", "sm"])
+def test_stacked_epochs_equal_the_plain_loop_and_do_not_depend_on_the_stack(kind):
+    g = torch.Generator().manual_seed(1)
+    n = 64 * 40 + 37  # a partial last batch
+    s, m = torch.rand(n + 1, 5, generator=g), torch.rand(n + 1, 2, generator=g)
+    seeds = [5, 2, 7]
+
+    def stacked(order):
+        net = StackedEncoders.from_models([build_model(kind, seed=sd) for sd in order])
+        errors = [train_epoch_stacked(net, s, m, order, e, 64) for e in range(3)]
+        return net, torch.stack(errors)  # (epochs, K)
+
+    net, errors = stacked(seeds)
+    for k, sd in enumerate(seeds):
+        model = build_model(kind, seed=sd)
+        opt = FusedAdam(model.parameters())
+        plain = [
+            train_epoch_feedforward(model, opt, s, m, 64, epoch_generator(sd, e)) for e in range(3)
+        ]
+        alone = net.load_into(k, build_model(kind))
+        assert _equal(model.state_dict(), alone.state_dict())  # weights, bit for bit
+        state = net.optimizer_state(k)
+        for name in ("exp_avg", "exp_avg_sq", "steps"):
+            mine, ref = state[name], getattr(opt, name)
+            assert all(torch.equal(a, b) for a, b in zip(mine, ref, strict=True)), name
+        assert torch.allclose(
+            errors[:, k].double(), torch.tensor(plain, dtype=torch.float64), rtol=1e-5
+        )
+    # each seed alone, and the stack in another order: the same numbers
+    for k, sd in enumerate(seeds):
+        net1, _ = stacked([sd])
+        assert all(torch.equal(a[k], b[0]) for a, b in zip(net.params, net1.params, strict=True))
+    net2, _ = stacked(seeds[::-1])
+    assert all(torch.equal(a, b.flip(0)) for a, b in zip(net.params, net2.params, strict=True))
+
+
+def test_select_and_concat_keep_each_seed_state():
+    nets = [StackedEncoders.from_models([build_model("sm", seed=sd)]) for sd in (0, 1, 2)]
+    g = torch.Generator().manual_seed(2)
+    s, m = torch.rand(64 * 5 + 1, 5, generator=g), torch.rand(64 * 5 + 1, 2, generator=g)
+    for sd, net in enumerate(nets):
+        train_epoch_stacked(net, s, m, [sd], 0, 64)
+    both = StackedEncoders.concat(nets)
+    both.select([2, 0])
+    for k, sd in enumerate((2, 0)):
+        assert all(
+            torch.equal(a[k], b[0]) for a, b in zip(both.params, nets[sd].params, strict=True)
+        )
+        assert all(
+            torch.equal(a[k], b[0])
+            for a, b in zip(both.exp_avg_sq, nets[sd].exp_avg_sq, strict=True)
+        )
+    assert float(both.step) == 5.0
+
+
+# --- run folders: early stopping, evaluation, format ---------------------------------------
+
+
+@pytest.mark.parametrize("kind", ["s", "sm"])
+def test_each_stacked_seed_is_its_solo_run_down_to_early_stopping(kind, square_db_path, tmp_path):
+    # patience 1 and a 10 % bar: seeds stop early, at epochs of their own
+    config = TrainConfig(model=kind, patience=1, min_ratio=0.9, max_epochs=30)
+    seeds = [0, 1, 2, 3]
+    results = train_seeds(square_db_path, tmp_path, config, seeds)
+    stops = set()
+    for seed, result in zip(seeds, results, strict=True):
+        plain = _plain_run(square_db_path, kind, seed, config)
+        folder = tmp_path / run_name("square", kind, seed)
+        assert result.run_dir == folder
+        assert result.stopped == "early stopping"
+        assert result.epochs == plain["epochs"]
+        assert [r.val_error for r in result.history] == plain["vals"]
+        best = torch.load(folder / "model.pt", weights_only=True)
+        assert _equal(best, plain["best"])
+        ckpt = torch.load(folder / "checkpoint.pt", weights_only=True)
+        assert _equal(ckpt["model"], plain["final"])
+        stops.add(result.epochs)
+    assert len(stops) > 1, "the seeds should stop at different epochs for this test to bite"
+
+
+def test_stacked_run_folders_are_single_seed_run_folders(square_db_path, tmp_path):
+    config = TrainConfig(model="sm", max_epochs=2)
+    train_seeds(square_db_path, tmp_path / "stack", config, [4, 7])
+    train(square_db_path, tmp_path / "solo", TrainConfig(model="sm", seed=7, max_epochs=2))
+    stacked, solo = tmp_path / "stack" / "square__sm__s7", tmp_path / "solo"
+    assert sorted(p.name for p in stacked.iterdir()) == sorted(p.name for p in solo.iterdir())
+    assert json.loads((stacked / "config.json").read_text()) == json.loads(
+        (solo / "config.json").read_text()
+    )
+    header = (solo / "history.csv").read_text().splitlines()[0]
+    assert (stacked / "history.csv").read_text().splitlines()[0] == header
+    a, b = (torch.load(d / "checkpoint.pt", weights_only=True) for d in (stacked, solo))
+    assert a.keys() == b.keys()
+    assert _equal(a["model"], b["model"])
+    for name in ("exp_avg", "exp_avg_sq", "steps"):
+        assert all(
+            torch.equal(x, y)
+            for x, y in zip(a["optimizer"][name], b["optimizer"][name], strict=True)
+        )
+    ra, rb = (json.loads((d / "result.json").read_text()) for d in (stacked, solo))
+    assert {k: v for k, v in ra.items() if k != "seconds"} == {
+        k: v for k, v in rb.items() if k != "seconds"
+    }
+    # evaluate reads it as any run, with the same test error
+    db = load_database(square_db_path)
+    s, m = split_tensors(db, "test")
+    run_a, run_b = load_run(stacked), load_run(solo)
+    assert run_a.config["train"]["seed"] == 7
+    assert model_error(run_a.model, s, m) == model_error(run_b.model, s, m)
+
+
+# --- resume --------------------------------------------------------------------------------
+
+
+class Killed(Exception):
+    pass
+
+
+def _history(folder):
+    return [ln.split(",")[:5] for ln in (folder / "history.csv").read_text().splitlines()]
+
+
+def test_resume_after_a_kill_between_two_seeds_equals_uninterrupted(square_db_path, tmp_path):
+    config = TrainConfig(model="s", max_epochs=4)
+    seeds = [0, 1, 2]
+    train_seeds(square_db_path, tmp_path / "straight", config, seeds)
+
+    def kill(seed, record, stopper):  # seed 0 has written epoch 2, seeds 1 and 2 only epoch 1
+        if (seed, record.epoch) == (0, 2):
+            raise Killed
+
+    with pytest.raises(Killed):
+        train_seeds(square_db_path, tmp_path / "killed", config, seeds, on_epoch=kill)
+    epochs = {
+        sd: torch.load(
+            tmp_path / "killed" / run_name("square", "s", sd) / "checkpoint.pt", weights_only=True
+        )["epoch"]
+        for sd in seeds
+    }
+    assert epochs == {0: 2, 1: 1, 2: 1}
+    seen = []
+    train_seeds(
+        square_db_path,
+        tmp_path / "killed",
+        config,
+        seeds,
+        resume=True,
+        on_epoch=lambda sd, r, st: seen.append((sd, r.epoch)),
+    )
+    assert seen[:2] == [(1, 2), (2, 2)]  # the lagging seeds catch up first, then all go on
+    assert sorted(seen[2:]) == [(0, 3), (1, 3), (2, 3)]
+    for sd in seeds:
+        a = tmp_path / "straight" / run_name("square", "s", sd)
+        b = tmp_path / "killed" / run_name("square", "s", sd)
+        ca, cb = (torch.load(d / "checkpoint.pt", weights_only=True) for d in (a, b))
+        assert _equal(ca["model"], cb["model"])
+        assert _equal(
+            torch.load(a / "model.pt", weights_only=True),
+            torch.load(b / "model.pt", weights_only=True),
+        )
+        assert _history(a) == _history(b)
+
+
+def test_resume_with_a_lifted_epoch_cap_equals_straight(square_db_path, tmp_path):
+    seeds = [0, 1]
+    train_seeds(square_db_path, tmp_path / "a", TrainConfig(model="sm", max_epochs=4), seeds)
+    train_seeds(square_db_path, tmp_path / "b", TrainConfig(model="sm", max_epochs=2), seeds)
+    results = train_seeds(
+        square_db_path, tmp_path / "b", TrainConfig(model="sm", max_epochs=4), seeds, resume=True
+    )
+    assert [r.epochs for r in results] == [4, 4]
+    for sd in seeds:
+        a, b = (tmp_path / d / run_name("square", "sm", sd) for d in ("a", "b"))
+        ca, cb = (torch.load(d / "checkpoint.pt", weights_only=True) for d in (a, b))
+        assert _equal(ca["model"], cb["model"])
+        assert _history(a) == _history(b)
+
+
+def test_scripted_validation_stops_one_seed_and_leaves_the_other(
+    square_db_path, tmp_path, monkeypatch
+):
+    """Seed 0's validation never improves after epoch 0: it stops after 3 epochs (patience 2)
+    and leaves the stack; seed 1's always improves: it runs to the cap, its weights untouched."""
+    models: list[int] = []  # id of each seed's model, in the order first validated: 0, then 1
+
+    def scripted(model, s, m):
+        if id(model) not in models:
+            models.append(id(model))
+        scripted.calls += 1
+        return 1.0 if models.index(id(model)) == 0 else 0.5**scripted.calls
+
+    scripted.calls = 0
+    monkeypatch.setattr(train_mod, "model_error", scripted)
+    config = TrainConfig(model="s", patience=2, max_epochs=5)
+    results = train_seeds(square_db_path, tmp_path / "x", config, [0, 1])
+    monkeypatch.undo()
+    assert (results[0].stopped, results[0].epochs, results[0].best_epoch) == (
+        "early stopping",
+        3,
+        0,
+    )
+    assert (results[1].stopped, results[1].epochs) == ("max epochs", 5)
+    assert len(models) == 2
+    for sd, epochs in ((0, 3), (1, 5)):  # the same weights as each seed trained alone
+        alone = TrainConfig(model="s", seed=sd, patience=100, max_epochs=epochs)
+        train(square_db_path, tmp_path / f"alone{sd}", alone)
+        a = torch.load(tmp_path / "x" / f"square__s__s{sd}" / "checkpoint.pt", weights_only=True)
+        b = torch.load(tmp_path / f"alone{sd}" / "checkpoint.pt", weights_only=True)
+        assert a["epoch"] == epochs - 1
+        assert _equal(a["model"], b["model"])
+
+
+# --- the command line ----------------------------------------------------------------------
+
+
+def test_cli_trains_one_folder_per_seed(square_db_path, tmp_path, cli):
+    out = tmp_path / "runs"
+    args = ["train", "sm", "--seeds", "0,1", "--data", square_db_path, "--out", out]
+    proc = cli(*args, "--max-epochs", "2")
+    assert proc.returncode == 0, proc.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["square__sm__s0", "square__sm__s1"]
+    for sd in (0, 1):
+        run = load_run(out / f"square__sm__s{sd}")
+        assert run.config["train"]["seed"] == sd
+        assert json.loads((run.path / "result.json").read_text())["epochs"] == 2
+    assert_one_line_error(cli(*args, "--max-epochs", "2"), "--resume")
+
+
+@pytest.mark.parametrize(
+    ("seeds", "needle"),
+    [("", "at least one"), ("0,a", "'a' is not an integer"), ("1,2,1", "seed 1 is given twice")],
+)
+def test_cli_refuses_bad_seeds(seeds, needle, square_db_path, tmp_path, cli):
+    out = tmp_path / "runs"
+    proc = cli("train", "s", "--seeds", seeds, "--data", square_db_path, "--out", out)
+    assert_one_line_error(proc, "--seeds", needle)
+    assert not out.exists()
+
+
+def test_cli_seeds_of_a_recurrent_model_train_one_after_another(square_db_path, tmp_path, cli):
+    out = tmp_path / "runs"
+    args = ["train", "rec-s", "--seeds", "2,5", "--data", square_db_path, "--out", out]
+    proc = cli(*args, "--max-epochs", "1")
+    assert proc.returncode == 0, proc.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["square__rec-s__s2", "square__rec-s__s5"]
+    assert load_run(out / "square__rec-s__s5").config["train"]["seed"] == 5
