@@ -161,3 +161,24 @@ def test_output_folder_that_is_a_file_is_refused(tmp_path, cli):
     target.write_text("not a folder")
     proc = cli("reproduce", "--scale", "smoke", "--out", target)
     assert_one_line_error(proc, str(target), "is a file")
+
+
+def test_a_failing_worker_names_its_run_and_finished_runs_are_kept(smoke, tmp_path):
+    out = tmp_path / "copy"
+    shutil.copytree(smoke, out)
+    bad = out / "data" / "rooms2.npz"
+    bad.write_bytes(bad.read_bytes()[:1000])  # truncated: rooms2's trainings must fail
+    stamp = {p: p.stat().st_mtime_ns for p in (out / "runs").rglob("model.pt")}
+    proc = _reproduce(out)
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr
+    last = proc.stderr.strip().splitlines()[-1]
+    assert last.startswith("error: run rooms2__")
+    assert "rooms2.npz" in last
+    assert {p: p.stat().st_mtime_ns for p in stamp} == stamp  # nothing finished was lost
+    bad.unlink()  # the data stage makes it again, byte for byte
+    proc = _reproduce(out)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    timings = json.loads((out / "timings.json").read_text())
+    assert timings["train"]["jobs"] == 0
+    assert _table_numbers(out) == _table_numbers(smoke)

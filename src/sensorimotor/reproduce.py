@@ -94,8 +94,10 @@ def run_matches(run: Path, data_sha: str, config: dict) -> bool:
 
 
 def _train_job(data: str, run_dir: str, config: dict, data_sha: str) -> dict:
+    from sensorimotor.data import load_database
     from sensorimotor.train import TrainConfig, train
 
+    load_database(data)  # bad data fails here, before a stale run folder is cleared
     run = Path(run_dir)
     if run.exists() and not run_matches(run, data_sha, config):
         shutil.rmtree(run)  # made from other inputs: start again
@@ -114,6 +116,36 @@ def _train_job(data: str, run_dir: str, config: dict, data_sha: str) -> dict:
         f"done: {result.stopped} after {result.epochs} epochs, best val {result.best_val_error:.5f}",
     )
     return {"epochs": result.epochs, "best_val_error": result.best_val_error}
+
+
+def _train_stack_job(data: str, runs: list[tuple[int, str]], config: dict, data_sha: str) -> dict:
+    """S or SM for several seeds in one process, stacked (``stacked.train_runs``)."""
+    from sensorimotor.data import load_database
+    from sensorimotor.stacked import train_runs
+    from sensorimotor.train import TrainConfig
+
+    load_database(data)  # bad data fails here, before a stale run folder is cleared
+    for seed, run_dir in runs:
+        run = Path(run_dir)
+        if run.exists() and not run_matches(run, data_sha, {**config, "seed": seed}):
+            shutil.rmtree(run)
+    names = {seed: Path(run_dir).name for seed, run_dir in runs}
+
+    def on_epoch(seed, r, stopper) -> None:
+        report(
+            names[seed],
+            f"epoch {r.epoch:3d} val {r.val_error:.5f} (best {stopper.lowest:.5f}) "
+            f"{r.samples_per_s / 1e3:.0f} k samples/s (stack of {len(runs)})",
+        )
+
+    results = train_runs(data, runs, TrainConfig(**config, seed=0), resume=True, on_epoch=on_epoch)
+    for (seed, _), result in zip(runs, results, strict=True):
+        report(
+            names[seed],
+            f"done: {result.stopped} after {result.epochs} epochs, best val "
+            f"{result.best_val_error:.5f}",
+        )
+    return {names[seed]: r.best_val_error for (seed, _), r in zip(runs, results, strict=True)}
 
 
 def _eval_job(run_dir: str, data: list[str], out: str, key: str) -> dict:
@@ -242,9 +274,10 @@ def reproduce(
 
     # train --------------------------------------------------------------------------------
     with _stage(rep, "train", log):
-        jobs = []
+        jobs, n_train = [], 0
         for world in WORLDS:
             for model in MODEL_KINDS:
+                stack = []  # S and SM seeds that need training: one stacked job
                 for seed in range(seeds):
                     rep.runs.append((world, model, seed))
                     config = {
@@ -257,11 +290,25 @@ def reproduce(
                     done = (run / "result.json").exists()
                     if done and run_matches(run, data_hash[world], config):
                         continue
+                    n_train += 1
+                    if model in ("s", "sm"):
+                        stack.append((seed, str(run)))
+                        continue
                     args = (str(rep.data[world]), str(run), config, data_hash[world])
                     jobs.append(Job(run.name, _train_job, args))
-        rep.timings["train"] = {"jobs": len(jobs), "cached": len(rep.runs) - len(jobs)}
+                if stack:
+                    config = {
+                        "model": model,
+                        "device": device,
+                        "max_epochs": sc.max_epochs.get(model),
+                    }
+                    name = f"{world}__{model}__s" + ",".join(str(sd) for sd, _ in stack)
+                    args = (str(rep.data[world]), stack, config, data_hash[world])
+                    jobs.append(Job(name, _train_stack_job, args))
+        rep.timings["train"] = {"jobs": n_train, "cached": len(rep.runs) - n_train}
         log(
-            f"  {len(jobs)} trainings to run, {len(rep.runs) - len(jobs)} cached, {workers} worker(s)"
+            f"  {n_train} trainings to run in {len(jobs)} jobs (S and SM seeds stacked), "
+            f"{len(rep.runs) - n_train} cached, {workers} worker(s)"
         )
         _, failures = run_jobs(jobs, workers, progress)
         _raise_failures(failures, log)
