@@ -47,7 +47,7 @@ class Scale:
 
 SCALES = {
     "smoke": Scale("smoke", 20_000, 1, {k: 2 for k in MODEL_KINDS}),
-    "quick": Scale("quick", 200_000, 1, {"s": 12, "sm": 12, "rec-s": 25, "rec-sm": 25}),
+    "quick": Scale("quick", 200_000, 1, {"s": 10, "sm": 10, "rec-s": 30, "rec-sm": 80}),
     "paper": Scale("paper", 1_000_000, 5, {}),
 }
 
