@@ -326,9 +326,12 @@ def write_report(rep, argv: list[str], hardware: dict) -> tuple[Path, Path]:
                 ["scale", f"{rep.scale.name} ({rep.scale.steps:,} steps per world)"],
                 ["seeds", f"{rep.seeds} (0..{rep.seeds - 1}) per model and training world"],
                 [
-                    "epoch caps",
-                    ", ".join(f"{k}: {v}" for k, v in rep.scale.max_epochs.items())
-                    or "none (early stopping alone)",
+                    "epoch caps / patience",
+                    (
+                        ", ".join(f"{k}: {v}" for k, v in rep.scale.max_epochs.items())
+                        or "none (early stopping alone)"
+                    )
+                    + f" / {rep.scale.patience} epochs",
                 ],
                 ["device / workers", f"{rep.device} / {rep.workers}"],
                 ["package", hardware["sensorimotor"]],

@@ -43,11 +43,14 @@ class Scale:
     """Default number of seeds per model and world."""
     max_epochs: dict[str, int | None] = field(default_factory=dict)
     """Cap on epochs per model kind (missing or None: early stopping alone)."""
+    patience: int = 10
+    """Early-stopping patience in epochs (the paper: 10 epochs of 800,000 steps)."""
 
 
 SCALES = {
     "smoke": Scale("smoke", 20_000, 1, {k: 2 for k in MODEL_KINDS}),
-    "quick": Scale("quick", 200_000, 1, {"s": 10, "sm": 10, "rec-s": 30, "rec-sm": 80}),
+    # 5 times smaller epochs: a 5 times longer patience sees as many samples as the paper's 10
+    "quick": Scale("quick", 200_000, 1, {"s": 10, "sm": 10, "rec-s": 30, "rec-sm": 80}, 50),
     "paper": Scale("paper", 1_000_000, 5, {}),
 }
 
@@ -285,6 +288,7 @@ def reproduce(
                         "seed": seed,
                         "device": device,
                         "max_epochs": sc.max_epochs.get(model),
+                        "patience": sc.patience,
                     }
                     run = rep.run_dir(world, model, seed)
                     done = (run / "result.json").exists()
@@ -301,6 +305,7 @@ def reproduce(
                         "model": model,
                         "device": device,
                         "max_epochs": sc.max_epochs.get(model),
+                        "patience": sc.patience,
                     }
                     name = f"{world}__{model}__s" + ",".join(str(sd) for sd, _ in stack)
                     args = (str(rep.data[world]), stack, config, data_hash[world])
