@@ -242,7 +242,12 @@ def test_cli_analyze_raw_writes_figures_and_metrics(cli, square_db_path, tmp_pat
     assert proc.returncode == 0, proc.stderr
     assert "corner in view" in proc.stdout
     assert "KNN-MSE" in proc.stdout
-    assert sorted(p.name for p in out.iterdir()) == ["clusters.png", "metrics.json", "pca.npz", "pca.png"]
+    assert sorted(p.name for p in out.iterdir()) == [
+        "clusters.png",
+        "metrics.json",
+        "pca.npz",
+        "pca.png",
+    ]
     m = json.loads((out / "metrics.json").read_text())
     assert m["run"] == "raw"
     assert m["fit_analysis"] is None

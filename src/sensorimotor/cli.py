@@ -21,14 +21,15 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 err_console = Console(stderr=True, soft_wrap=True)
+MAX_SEED = 2**32 - 1  # what every seeded library here accepts
 
 WorldArg = Annotated[
     str, typer.Argument(help="World: square, rooms1, rooms2, or the path of a .toml world file.")
 ]
 
 
-def progress_bar(description: str, total: int) -> Progress:
-    """A rich progress bar on stderr (silent when stderr is not a terminal and CI is set)."""
+def progress_bar() -> Progress:
+    """A rich progress bar on stderr."""
     return Progress(
         TextColumn("[bold]{task.description}"),
         BarColumn(),
@@ -44,7 +45,9 @@ def progress_bar(description: str, total: int) -> Progress:
 def generate(
     world: WorldArg,
     steps: Annotated[int, typer.Option(help="Number of steps (rows) to record.")] = 1_000_000,
-    seed: Annotated[int, typer.Option(help="Seed of the random generator (PCG64).")] = 0,
+    seed: Annotated[
+        int, typer.Option(min=0, max=MAX_SEED, help="Seed of the random generator (PCG64).")
+    ] = 0,
     out: Annotated[
         Path | None, typer.Option(help="Output .npz (default: WORLD_sSEED.npz).")
     ] = None,
@@ -57,13 +60,13 @@ def generate(
 
     if steps < 1:
         raise InputError(f"--steps must be at least 1, got {steps}")
-    if noise < 0 or noise != noise:
+    if not (noise >= 0 and noise < float("inf")):
         raise InputError(f"--noise must be a non-negative number, got {noise}")
     w = load_world(world)
     out = out or Path(f"{w.name}_s{seed}.npz")
     check_writable(out)
     check_memory(steps)
-    with progress_bar(f"generate {w.name}", steps) as bar:
+    with progress_bar() as bar:
         task = bar.add_task(f"generate {w.name}", total=steps)
         db = generate_db(
             w, steps, seed, noise_std=noise, progress=lambda n: bar.update(task, completed=n)
@@ -98,11 +101,15 @@ def train(
     model: ModelArg,
     data: Annotated[Path, typer.Option(help="Database (.npz) from `sensorimotor generate`.")],
     out: Annotated[Path, typer.Option(help="Run folder to write (weights, config, history).")],
-    seed: Annotated[int, typer.Option(help="Seed of the initial weights and data order.")] = 0,
+    seed: Annotated[
+        int, typer.Option(min=0, max=MAX_SEED, help="Seed of the initial weights and data order.")
+    ] = 0,
     max_epochs: Annotated[int | None, typer.Option(help="Cap on epochs.")] = None,
     max_minutes: Annotated[float | None, typer.Option(help="Cap on training minutes.")] = None,
     device: Annotated[str, typer.Option(help="auto, cpu or cuda.")] = "cpu",
-    resume: Annotated[bool, typer.Option(help="Continue the run in --out from its last epoch.")] = False,
+    resume: Annotated[
+        bool, typer.Option(help="Continue the run in --out from its last epoch.")
+    ] = False,
     seeds: Annotated[
         str | None,
         typer.Option(
@@ -125,7 +132,9 @@ def train(
         raise InputError(f"--max-epochs must be at least 1, got {max_epochs}")
     if max_minutes is not None and not max_minutes > 0:
         raise InputError(f"--max-minutes must be positive, got {max_minutes}")
-    config = TrainConfig(model=model, seed=seed, max_epochs=max_epochs, max_minutes=max_minutes, device=device)
+    config = TrainConfig(
+        model=model, seed=seed, max_epochs=max_epochs, max_minutes=max_minutes, device=device
+    )
 
     def on_epoch(r, stopper) -> None:
         left = ""
@@ -167,6 +176,8 @@ def _parse_seeds(text: str) -> list[int]:
             raise InputError(
                 f"--seeds: {item.strip()!r} is not an integer (e.g. 0,1,2,3,4)"
             ) from None
+        if not 0 <= values[-1] <= MAX_SEED:
+            raise InputError(f"--seeds: {values[-1]} is outside 0..{MAX_SEED}")
     return check_seeds(values)
 
 
@@ -205,7 +216,9 @@ def _train_seeds(model: str, data: Path, out: Path, config, seeds: list[int], re
 def evaluate(
     run_dir: Annotated[Path, typer.Argument(help="Run folder from `sensorimotor train`.")],
     data: Annotated[list[Path], typer.Option(help="Databases to test on (repeatable).")],
-    json_out: Annotated[Path | None, typer.Option("--json", help="Also write the results as JSON.")] = None,
+    json_out: Annotated[
+        Path | None, typer.Option("--json", help="Also write the results as JSON.")
+    ] = None,
 ) -> None:
     """Test-split prediction error of a trained model on one or more databases, with baselines."""
     import json
@@ -221,7 +234,9 @@ def evaluate(
     run = load_run(run_dir)
     dbs = [load_database(p) for p in data]
     res = evaluate_run(run, dbs)
-    table = Table(title=f"{MODEL_NAMES[run.kind]} trained on {run.trained_on}: test error (sum over sensors)")
+    table = Table(
+        title=f"{MODEL_NAMES[run.kind]} trained on {run.trained_on}: test error (sum over sensors)"
+    )
     for col in ("test world", "model", "mean baseline", "copy-last baseline"):
         table.add_column(col, justify="right")
     for world, err in res["errors"].items():
@@ -237,7 +252,9 @@ def evaluate(
 def table(
     run_dirs: Annotated[list[Path], typer.Argument(help="Run folders (several seeds allowed).")],
     data: Annotated[list[Path], typer.Option(help="Test databases, one per world (repeatable).")],
-    json_out: Annotated[Path | None, typer.Option("--json", help="Also write the table as JSON.")] = None,
+    json_out: Annotated[
+        Path | None, typer.Option("--json", help="Also write the table as JSON.")
+    ] = None,
 ) -> None:
     """Table I: rows = models, columns = test worlds, mean +- sd over seeds, the paper beside."""
     import json
@@ -278,7 +295,9 @@ def table(
         holds = result["paper_ordering_holds"][trained_on]
         cells = ["paper ordering"]
         for w in worlds:
-            cells += [{True: "holds", False: "fails", None: "n/a"}[holds[w]]] + ([""] if paper else [])
+            cells += [{True: "holds", False: "fails", None: "n/a"}[holds[w]]] + (
+                [""] if paper else []
+            )
         t.add_row(*cells)
         Console(width=max(100, Console().width)).print(t)
     if json_out is not None:
@@ -391,7 +410,9 @@ def analyze(
             "(transfer)."
         ),
     ] = None,
-    seed: Annotated[int, typer.Option(help="Seed of k-means, the probes and the drawings.")] = 0,
+    seed: Annotated[
+        int, typer.Option(min=0, max=MAX_SEED, help="Seed of k-means, the probes and the drawings.")
+    ] = 0,
 ) -> None:
     """Cluster a representation of a test split (k-means, k = 20), score it against the
     ground-truth events, draw its PCA and clusters, and write metrics.json."""
@@ -412,19 +433,33 @@ def analyze(
 
 @app.command()
 def reproduce(
-    scale: Annotated[str, typer.Option(help="smoke (about a minute), quick (minutes) or paper (the full protocol).")] = "quick",
-    out: Annotated[Path, typer.Option(help="Output folder (cached stages are reused).")] = Path("runs/reproduce"),
-    seeds: Annotated[int | None, typer.Option(help="Seeds per model and world (default: the scale's).")] = None,
+    scale: Annotated[
+        str,
+        typer.Option(help="smoke (about a minute), quick (minutes) or paper (the full protocol)."),
+    ] = "quick",
+    out: Annotated[Path, typer.Option(help="Output folder (cached stages are reused).")] = Path(
+        "runs/reproduce"
+    ),
+    seeds: Annotated[
+        int | None, typer.Option(help="Seeds per model and world (default: the scale's).")
+    ] = None,
     device: Annotated[str, typer.Option(help="auto, cpu or cuda.")] = "cpu",
-    workers: Annotated[int | None, typer.Option(help="Parallel worker processes (default: the number of cores).")] = None,
+    workers: Annotated[
+        int | None, typer.Option(help="Parallel worker processes (default: the number of cores).")
+    ] = None,
 ) -> None:
     """Reproduce the paper: databases, the four models on the three worlds, Table I, the analysis, a report."""
     from sensorimotor.parallel import default_workers
     from sensorimotor.reproduce import reproduce as reproduce_all
 
     rep = reproduce_all(
-        out, scale, seeds, device, workers if workers is not None else default_workers(),
-        log=err_console.print, argv=sys.argv,
+        out,
+        scale,
+        seeds,
+        device,
+        workers if workers is not None else default_workers(),
+        log=err_console.print,
+        argv=sys.argv,
     )
     t = rep.table
     holds = t["paper_ordering_holds"].get("square", {})
@@ -454,9 +489,25 @@ def _root(
 
 
 def main() -> None:
-    """Entry point: every InputError becomes one line on stderr and exit code 2."""
+    """Entry point: every user error (a bad file, a bad option) is one line on stderr, exit 2."""
+    # typer carries click's exceptions (vendored in recent releases): find them by name
+    base = {c.__name__: c for c in typer.BadParameter.__mro__}
+    usage_error, click_exception = base["UsageError"], base["ClickException"]
     try:
-        app()
+        rc = app(standalone_mode=False)
     except InputError as err:
         print(f"error: {err}", file=sys.stderr)
         sys.exit(2)
+    except usage_error as err:
+        message = err.format_message().strip()
+        if message:  # empty when no arguments were given: the help has been shown
+            hint = f" (try `{err.ctx.command_path} --help`)" if err.ctx is not None else ""
+            print(f"error: {message}{hint}", file=sys.stderr)
+        sys.exit(2)
+    except click_exception as err:
+        print(f"error: {err.format_message()}", file=sys.stderr)
+        sys.exit(err.exit_code)
+    except (typer.Abort, KeyboardInterrupt):
+        print("aborted", file=sys.stderr)
+        sys.exit(130)
+    sys.exit(rc if isinstance(rc, int) else 0)

@@ -219,6 +219,7 @@ def load_database(path: str | Path) -> Database:
     try:
         meta = json.loads(str(meta_raw))
         world_from_dict(meta["world"], f"{path}: meta.world")
+        _check_layout(meta, arrays["sensors"].shape[1], path)
     except InputError:
         raise
     except (ValueError, KeyError, TypeError) as err:
@@ -226,6 +227,28 @@ def load_database(path: str | Path) -> Database:
     return Database(
         *(arrays[k].astype(np.float32, copy=False) for k in ARRAYS), meta=meta, path=path
     )
+
+
+def _check_layout(meta: dict, n_sensors: int, path: Path) -> None:
+    """The sensor layout in ``meta`` (optional) must describe the sensors array."""
+    layout = meta.get("sensor_layout")
+    if layout is None:
+        return
+    angles = layout.get("angles") if isinstance(layout, dict) else None
+    max_range = layout.get("max_range") if isinstance(layout, dict) else None
+    ok = (
+        isinstance(angles, list)
+        and len(angles) == n_sensors
+        and all(isinstance(a, int | float) and math.isfinite(a) for a in angles)
+        and isinstance(max_range, int | float)
+        and math.isfinite(max_range)
+        and max_range > 0
+    )
+    if not ok:
+        raise InputError(
+            f"{path}: meta.sensor_layout must give {n_sensors} finite angles and a positive "
+            f"max_range, got {layout!r}"
+        )
 
 
 def file_hash(path: str | Path) -> str:

@@ -101,7 +101,12 @@ def load_run(run_dir: str | Path, device: str | torch.device = "cpu") -> Run:
         model_config = ModelConfig(
             **{**config["model"], "ff_hidden": tuple(config["model"]["ff_hidden"])}
         )
-    except (ValueError, KeyError, TypeError) as err:
+        for key in ("world", "sha256"):
+            if not isinstance(config["data"][key], str):
+                raise TypeError(f"data.{key} is not a string")
+        if not isinstance(config["train"], dict):
+            raise TypeError("'train' is not a table")
+    except (ValueError, KeyError, TypeError, AttributeError) as err:
         raise InputError(f"{cfg_path}: corrupt run config ({err})") from None
     if not weights.is_file():
         raise InputError(f"{weights}: missing checkpoint (training has not finished an epoch)")
@@ -151,6 +156,10 @@ def evaluate_run(run: Run, dbs: list[Database], split: str = "test") -> dict:
         if len(s) < 2:
             raise InputError(f"{db.path}: the {split} split has fewer than 2 steps")
         name = db.meta["world"]["name"]
+        if name in errors:
+            raise InputError(
+                f"{db.path}: a second test database of world {name!r}; give one per world"
+            )
         errors[name] = model_error(run.model, s, m)
         base[name] = baselines(db, split)
     return {

@@ -9,12 +9,12 @@ from __future__ import annotations
 import base64
 import html
 import json
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from sensorimotor.claims import claim_numbers, cluster_f1, fmt_ms, paper_claims
 from sensorimotor.data import atomic_path
 from sensorimotor.models import MODEL_KINDS, MODEL_NAMES
 from sensorimotor.tables import PAPER_TABLE_I, fmt_cell
@@ -113,148 +113,6 @@ def to_html(blocks: list[Block], title: str) -> str:
 
 
 # --- numbers -----------------------------------------------------------------------------------
-
-
-def _mean_sd(values: list[float]) -> tuple[float, float]:
-    values = [v for v in values if v is not None and not math.isnan(v)]
-    if not values:
-        return math.nan, math.nan
-    a = np.asarray(values, dtype=float)
-    return float(a.mean()), float(a.std(ddof=1)) if len(a) > 1 else 0.0
-
-
-def fmt_ms(values: list[float], digits: int = 2) -> str:
-    mean, sd = _mean_sd(values)
-    if math.isnan(mean):
-        return "n/a"
-    return f"{mean:.{digits}f}" + (
-        f" ± {sd:.{digits}f}" if len([v for v in values if v is not None]) > 1 else ""
-    )
-
-
-def claim_numbers(analyses: dict[str, dict], runs: list[tuple[str, str, int]], worlds) -> dict:
-    """Per training world and model (and raw): the lists over seeds of each claim number."""
-    out: dict[str, dict[str, dict[str, list]]] = {}
-    for world in worlds:
-        out[world] = {}
-        names = {"raw": [f"raw__{world}"]}
-        for kind in MODEL_KINDS:
-            names[kind] = [f"{w}__{m}__s{s}" for w, m, s in runs if w == world and m == kind]
-        for kind, keys in names.items():
-            vals: dict[str, list] = {
-                k: []
-                for k in (
-                    "corner_f1",
-                    "wall_end_f1",
-                    "nothing_clusters",
-                    "behind_r2",
-                    "r2_x",
-                    "r2_y",
-                    "r2_cos",
-                    "knn_mse",
-                )
-            }
-            for key in keys:
-                a = analyses[key]["analysis"]
-                ev = a["events"]
-                vals["corner_f1"].append(ev.get("corner", {}).get("f1"))
-                vals["wall_end_f1"].append(ev.get("wall_end", {}).get("f1"))
-                vals["nothing_clusters"].append(a["memory"]["nothing_clusters"])
-                vals["behind_r2"].append(a["memory"]["distance_behind_r2"])
-                pos = a["position"]
-                vals["r2_x"].append(pos["r2_x"])
-                vals["r2_y"].append(pos["r2_y"])
-                vals["r2_cos"].append(pos["r2_cos_heading"])
-                vals["knn_mse"].append(pos["knn_mse"])
-            out[world][kind] = vals
-    return out
-
-
-def _m(values: list) -> float:
-    return _mean_sd(values)[0]
-
-
-def paper_claims(rep, numbers: dict) -> list[tuple[str, str, bool | None]]:
-    """Each of the paper's claims, the numbers that test it, and whether they support it."""
-    claims = []
-    t = rep.table
-    sq = t["paper_ordering_holds"].get("square", {})
-    holds = [v for v in sq.values() if v is not None]
-    claims.append(
-        (
-            "Table I ordering (trained on Square): Rec-SM < SM < both Rec-S and S, in every test world",
-            ", ".join(f"{w}: {'holds' if v else 'fails'}" for w, v in sq.items() if v is not None),
-            all(holds) if holds else None,
-        )
-    )
-    n = numbers["square"]
-    corner = {k: _m(n[k]["corner_f1"]) for k in ("raw", "s", "sm", "rec-s", "rec-sm")}
-    claims.append(
-        (
-            "Motors grow a corner cluster: the best cluster's corner F1 of SM and Rec-SM exceeds that "
-            "of S and of the raw readings by at least 0.1 (Square)",
-            ", ".join(f"{LABEL[k].split(' ')[0]} {v:.2f}" for k, v in corner.items()),
-            min(corner["sm"], corner["rec-sm"]) >= max(corner["s"], corner["raw"]) + 0.1,
-        )
-    )
-    claims.append(
-        (
-            "No corner cluster without motors: Rec-S's corner F1 stays below SM's and Rec-SM's (Square)",
-            f"Rec-S {corner['rec-s']:.2f}, SM {corner['sm']:.2f}, Rec-SM {corner['rec-sm']:.2f}",
-            corner["rec-s"] < min(corner["sm"], corner["rec-sm"]),
-        )
-    )
-    mem = {
-        k: (_m(n[k]["nothing_clusters"]), _m(n[k]["behind_r2"])) for k in ("s", "rec-s", "rec-sm")
-    }
-    claims.append(
-        (
-            "Memory: Rec-SM splits the 'nothing in view' states (several such clusters, distance to the "
-            "wall behind decodable) where S cannot (Square)",
-            ", ".join(
-                f"{LABEL[k].split(' ')[0]}: {c:.1f} clusters, R² {r:.2f}"
-                for k, (c, r) in mem.items()
-            ),
-            mem["rec-sm"][0] > 1 and mem["rec-sm"][1] > mem["s"][1] + 0.1,
-        )
-    )
-    claims.append(
-        (
-            "Motors sharpen memory: Rec-SM tells 'nothing in view' states apart better than Rec-S "
-            "(distance-behind R², Square)",
-            f"Rec-SM {mem['rec-sm'][1]:.2f}, Rec-S {mem['rec-s'][1]:.2f}",
-            mem["rec-sm"][1] > mem["rec-s"][1],
-        )
-    )
-    if "rooms1" in numbers and "rooms2" in numbers:
-        e1 = _m(numbers["rooms1"]["rec-sm"]["wall_end_f1"])
-        e2 = _m(numbers["rooms2"]["rec-sm"]["wall_end_f1"])
-        raw1 = _m(numbers["rooms1"]["raw"]["wall_end_f1"])
-        claims.append(
-            (
-                "A wall-end cluster grows when Rec-SM is trained on Rooms1 (F1 above the raw readings' "
-                "by 0.1) but not on Rooms2 (F1 lower than on Rooms1)",
-                f"Rooms1 {e1:.2f} (raw {raw1:.2f}), Rooms2 {e2:.2f}",
-                e1 >= raw1 + 0.1 and e2 < e1,
-            )
-        )
-    tr = rep.transfers
-    key = "square__rec-sm__s0"
-    if f"{key}__to__rooms1" in tr:
-        fit_f1 = tr[f"{key}__to__rooms1"]["fit_analysis"]["events"]["corner"]["f1"]
-        to = {
-            w: tr[f"{key}__to__{w}"]["analysis"]["events"]["corner"]["f1"]
-            for w in ("rooms1", "rooms2")
-        }
-        claims.append(
-            (
-                "Transfer: Square's corner cluster still finds corners in Rooms1 and Rooms2 (F1 at least "
-                "half of that on Square)",
-                f"Square {fit_f1:.2f}, Rooms1 {to['rooms1']:.2f}, Rooms2 {to['rooms2']:.2f}",
-                min(to.values()) >= 0.5 * fit_f1,
-            )
-        )
-    return claims
 
 
 # --- figures -------------------------------------------------------------------------------------
@@ -482,21 +340,23 @@ def write_report(rep, argv: list[str], hardware: dict) -> tuple[Path, Path]:
             b.append(image(path, f"{LABEL[kind]} trained on {world}: the 20 clusters"))
 
     b.append(h(3, "Transfer: Rec-SM and its clusters fitted on one world, applied to another"))
+    b.append(
+        p(
+            "For each event, the cluster that detects it best on the world the clusters were fitted "
+            "on (its number and F1 there), and the F1 of that same cluster on the other world."
+        )
+    )
     body = []
     for m in rep.transfers.values():
-        src, dst = m["fit_analysis"]["world"], m["analysis"]["world"]
-        ev_fit, ev = m["fit_analysis"]["events"], m["analysis"]["events"]
-        body.append(
-            [
-                f"{src} → {dst}",
-                *(
-                    f"{ev_fit[e]['f1']:.2f} → {ev[e]['f1']:.2f}"
-                    if e in ev and e in ev_fit
-                    else (f"– → {ev[e]['f1']:.2f}" if e in ev else "–")
-                    for e in ("corner", "wall_end", "nothing")
-                ),
-            ]
-        )
+        fit, applied = m["fit_analysis"], m["analysis"]
+        cells = [f"{fit['world']} → {applied['world']}"]
+        for e in ("corner", "wall_end", "nothing"):
+            if e not in fit["events"] or fit["events"][e]["cluster"] is None:
+                cells.append("–")
+                continue
+            c = fit["events"][e]["cluster"]
+            cells.append(f"#{c}: {fit['events'][e]['f1']:.2f} → {cluster_f1(applied, c, e):.2f}")
+        body.append(cells)
     b.append(table(["fitted → applied", "corner F1", "wall-end F1", "nothing F1"], body))
     for name in rep.transfers:
         path = out / "transfer" / name / "clusters.png"

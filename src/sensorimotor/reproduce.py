@@ -188,7 +188,9 @@ class Reproduction:
     transfers: dict[str, dict] = field(default_factory=dict)
 
     def run_name(self, world: str, model: str, seed: int) -> str:
-        return f"{world}__{model}__s{seed}"
+        from sensorimotor.train import run_name
+
+        return run_name(world, model, seed)
 
     def run_dir(self, world: str, model: str, seed: int) -> Path:
         return self.out / "runs" / self.run_name(world, model, seed)

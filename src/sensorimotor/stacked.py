@@ -55,6 +55,7 @@ from sensorimotor.train import (
     open_run_dir,
     resolve_device,
     run_meta,
+    run_name,
     save_epoch,
     stop_reason,
     stored_result,
@@ -66,11 +67,6 @@ ALIGN_ROWS = 16  # gathered rows padded to a multiple of this: 64-byte aligned s
 ADAM_VECTOR = 16  # floats per SIMD vector, at most (AVX-512); see StackedEncoders._adam_lists
 
 OnEpoch = Callable[[int, EpochRecord, EarlyStopping], None]  # (seed, record, stopper)
-
-
-def run_name(world: str, model: str, seed: int) -> str:
-    """The run folder of one seed under a multi-seed ``--out``: ``{world}__{model}__s{seed}``."""
-    return f"{world}__{model}__s{seed}"
 
 
 def check_seeds(seeds: Sequence[int]) -> list[int]:

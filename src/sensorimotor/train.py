@@ -112,6 +112,11 @@ class TrainResult:
     history: list[EpochRecord] = field(default_factory=list)
 
 
+def run_name(world: str, model: str, seed: int) -> str:
+    """The name of a run folder (CleanRL style): ``{world}__{model}__s{seed}``."""
+    return f"{world}__{model}__s{seed}"
+
+
 def stream_layout(n: int, streams: int) -> tuple[torch.Tensor, torch.Tensor]:
     """Cut ``n`` steps into ``streams`` contiguous streams: (index (streams, L), mask (streams, L)).
 
@@ -319,7 +324,9 @@ def check_run_dir(out: Path, meta: dict, resume: bool) -> None:
     if resume and cfg_path.exists():
         try:
             old = json.loads(cfg_path.read_text())
-        except ValueError as err:
+            if not all(isinstance(old.get(k), dict) for k in ("model", "train", "data")):
+                raise ValueError("missing its model, train or data table")
+        except (ValueError, AttributeError) as err:
             raise InputError(f"{cfg_path}: corrupt run config ({err})") from None
         for key in ("model", "train", "data"):
             a, b = old.get(key, {}), meta[key]
@@ -368,9 +375,12 @@ def stored_result(out: Path, history: list[EpochRecord]) -> TrainResult | None:
     result_path = out / "result.json"
     if not result_path.exists():
         return None
-    res = json.loads(result_path.read_text())
-    if res["stopped"] != "early stopping":
-        return None
+    try:
+        res = json.loads(result_path.read_text())
+        if res["stopped"] != "early stopping":
+            return None
+    except (ValueError, KeyError, TypeError):
+        return None  # unreadable: the checkpoint decides (the run goes on from it)
     return TrainResult(
         out,
         res["best_epoch"],

@@ -156,7 +156,11 @@ def point_segment_distance(segments: np.ndarray, x: np.ndarray, y: np.ndarray) -
 
 
 def free_start_cells(world: World, resolution: float = 0.25) -> np.ndarray:
-    """(P, 2) grid points at least START_CLEARANCE from every wall: proof that a start exists."""
+    """(P, 2) grid points at least START_CLEARANCE from every wall: proof that a start exists.
+
+    The grid is coarsened for big worlds so that it never holds more than 400 x 400 points.
+    """
+    resolution = max(resolution, world.width / 400, world.height / 400)
     xs = np.arange(resolution / 2, world.width, resolution)
     ys = np.arange(resolution / 2, world.height, resolution)
     gx, gy = np.meshgrid(xs, ys)

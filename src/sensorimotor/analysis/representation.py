@@ -24,8 +24,11 @@ from sensorimotor.world import World
 
 
 def raw_representation(sensors: np.ndarray, max_range: float = 10.0) -> np.ndarray:
-    """The paper's sensory-space baseline: the readings divided by the range, (N, R) float32."""
-    return (np.asarray(sensors, dtype=np.float32) / np.float32(max_range)).astype(np.float32)
+    """The paper's sensory-space baseline: the readings divided by the range, (N, R) float32
+    (the models' input scaling, ``data.scale_sensors``)."""
+    from sensorimotor.data import scale_sensors
+
+    return scale_sensors(sensors, max_range)
 
 
 def world_events(world: World, sensors: np.ndarray, poses: np.ndarray, max_range: float) -> dict:

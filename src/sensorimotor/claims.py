@@ -1,0 +1,222 @@
+"""The paper's claims as numbers: what each model's representation shows, and a verdict on each.
+
+Numbers come from the analysis (``metrics.json`` of each run) and from Table I; a verdict is True
+(supported), False (not supported) or None (a number is missing or NaN). Thresholds are stated
+in each claim's wording, so the report says exactly what was tested.
+"""
+
+from __future__ import annotations
+
+import math
+
+from sensorimotor.evaluate import mean_sd
+from sensorimotor.models import MODEL_KINDS, MODEL_NAMES
+from sensorimotor.train import run_name
+
+SHORT = {"raw": "raw", "s": "S", "sm": "SM", "rec-s": "Rec-S", "rec-sm": "Rec-SM"}
+
+
+def _mean_sd(values: list[float]) -> tuple[float, float]:
+    """Mean and sample sd of the numbers that are there (NaN, NaN if none is)."""
+    values = [v for v in values if v is not None and not math.isnan(v)]
+    return mean_sd(values) if values else (math.nan, math.nan)
+
+
+def fmt_ms(values: list[float], digits: int = 2) -> str:
+    mean, sd = _mean_sd(values)
+    if math.isnan(mean):
+        return "n/a"
+    return f"{mean:.{digits}f}" + (
+        f" ± {sd:.{digits}f}" if len([v for v in values if v is not None]) > 1 else ""
+    )
+
+
+def claim_numbers(analyses: dict[str, dict], runs: list[tuple[str, str, int]], worlds) -> dict:
+    """Per training world and model (and raw): the lists over seeds of each claim number."""
+    out: dict[str, dict[str, dict[str, list]]] = {}
+    for world in worlds:
+        out[world] = {}
+        names = {"raw": [f"raw__{world}"]}
+        for kind in MODEL_KINDS:
+            names[kind] = [run_name(w, m, s) for w, m, s in runs if w == world and m == kind]
+        for kind, keys in names.items():
+            vals: dict[str, list] = {
+                k: []
+                for k in (
+                    "corner_f1",
+                    "wall_end_f1",
+                    "nothing_clusters",
+                    "behind_r2",
+                    "r2_x",
+                    "r2_y",
+                    "r2_cos",
+                    "knn_mse",
+                )
+            }
+            for key in keys:
+                a = analyses[key]["analysis"]
+                ev = a["events"]
+                vals["corner_f1"].append(ev.get("corner", {}).get("f1"))
+                vals["wall_end_f1"].append(ev.get("wall_end", {}).get("f1"))
+                vals["nothing_clusters"].append(a["memory"]["nothing_clusters"])
+                vals["behind_r2"].append(a["memory"]["distance_behind_r2"])
+                pos = a["position"]
+                vals["r2_x"].append(pos["r2_x"])
+                vals["r2_y"].append(pos["r2_y"])
+                vals["r2_cos"].append(pos["r2_cos_heading"])
+                vals["knn_mse"].append(pos["knn_mse"])
+            out[world][kind] = vals
+    return out
+
+
+def _m(values: list) -> float:
+    return _mean_sd(values)[0]
+
+
+def _verdict(values: list[float], holds: bool) -> bool | None:
+    """``holds``, unless a number it was computed from is missing or NaN."""
+    if any(v is None or (isinstance(v, float) and math.isnan(v)) for v in values):
+        return None
+    return bool(holds)
+
+
+def cluster_f1(metrics: dict, cluster: int, event: str) -> float:
+    """F1 of one given cluster as a detector of ``event`` in an analysis' metrics."""
+    ev = metrics["events"].get(event)
+    if ev is None or not ev.get("count"):
+        return math.nan
+    c = next(c for c in metrics["clusters"] if c["id"] == cluster)
+    precision = c["precision"][event]
+    recall = precision * c["size"] / ev["count"]
+    return 0.0 if precision + recall == 0 else 2 * precision * recall / (precision + recall)
+
+
+def paper_claims(rep, numbers: dict) -> list[tuple[str, str, bool | None]]:
+    """Each of the paper's claims, the numbers that test it, and whether they support it."""
+    claims = []
+    t = rep.table
+    for trained_on, orders in t["paper_ordering_holds"].items():
+        known = {w: v for w, v in orders.items() if v is not None}
+        wording = (
+            "Table I ordering (trained on Square): Rec-SM < SM < both Rec-S and S, in every test world"
+            if trained_on == "square"
+            else f"The ordering is the same when trained on {trained_on} (paper: 'comparatively the same')"
+        )
+        claims.append(
+            (
+                wording,
+                ", ".join(f"{w}: {'holds' if v else 'fails'}" for w, v in known.items()),
+                all(known.values()) if known else None,
+            )
+        )
+    rows = {r["model"]: r["cells"] for r in t["tables"].get("square", [])}
+    if all(k in rows for k in MODEL_KINDS):
+        worlds = t["worlds"]
+        pairs = {
+            w: (
+                rows["rec-s"][w]["mean"],
+                rows["s"][w]["mean"],
+                rows["rec-sm"][w]["mean"],
+                rows["sm"][w]["mean"],
+            )
+            for w in worlds
+        }
+        claims.append(
+            (
+                "Memory lowers the error without motors too: Rec-S < S in every test world (trained on Square)",
+                ", ".join(f"{w}: Rec-S {a:.5f} vs S {b:.5f}" for w, (a, b, _, _) in pairs.items()),
+                all(a < b for a, b, _, _ in pairs.values()),
+            )
+        )
+    n = numbers["square"]
+    corner = {k: _m(n[k]["corner_f1"]) for k in ("raw", "s", "sm", "rec-s", "rec-sm")}
+    claims.append(
+        (
+            "Motors grow a corner cluster: the best cluster's corner F1 of SM and of Rec-SM exceeds "
+            "that of S and of the raw readings by at least 0.1 (Square)",
+            ", ".join(f"{SHORT[k]} {v:.2f}" for k, v in corner.items()),
+            _verdict(
+                list(corner.values()),
+                min(corner["sm"], corner["rec-sm"]) >= max(corner["s"], corner["raw"]) + 0.1,
+            ),
+        )
+    )
+    claims.append(
+        (
+            "No corner cluster without motors: Rec-S's corner F1 stays at least 0.1 below SM's and "
+            "Rec-SM's (Square)",
+            f"Rec-S {corner['rec-s']:.2f}, SM {corner['sm']:.2f}, Rec-SM {corner['rec-sm']:.2f}",
+            _verdict(
+                list(corner.values()), corner["rec-s"] + 0.1 <= min(corner["sm"], corner["rec-sm"])
+            ),
+        )
+    )
+    mem = {
+        k: (_m(n[k]["nothing_clusters"]), _m(n[k]["behind_r2"]))
+        for k in ("s", "sm", "rec-s", "rec-sm")
+    }
+    flat = [v for pair in mem.values() for v in pair]
+    claims.append(
+        (
+            "Memory: Rec-SM splits the 'nothing in view' states (more than one such cluster; distance to "
+            "the wall behind decodable, R² at least 0.1 above S's) where S cannot (Square)",
+            ", ".join(f"{SHORT[k]}: {c:.1f} clusters, R² {r:.2f}" for k, (c, r) in mem.items()),
+            _verdict(flat, mem["rec-sm"][0] > 1 and mem["rec-sm"][1] >= mem["s"][1] + 0.1),
+        )
+    )
+    claims.append(
+        (
+            "Motors sharpen memory: Rec-SM tells 'nothing in view' states apart better than Rec-S "
+            "(distance-behind R² higher, Square)",
+            f"Rec-SM {mem['rec-sm'][1]:.2f}, Rec-S {mem['rec-s'][1]:.2f}",
+            _verdict(flat, mem["rec-sm"][1] > mem["rec-s"][1]),
+        )
+    )
+    pos = {k: max(_m(n[k]["r2_x"]), _m(n[k]["r2_y"])) for k in ("s", "sm", "rec-s", "rec-sm")}
+    claims.append(
+        (
+            "No global notion of position: linear probes recover neither x nor y from any model (R² < 0.1, Square)",
+            ", ".join(f"{SHORT[k]} {v:.2f}" for k, v in pos.items()),
+            _verdict(list(pos.values()), max(pos.values()) < 0.1),
+        )
+    )
+    if "rooms1" in numbers and "rooms2" in numbers:
+        e1 = _m(numbers["rooms1"]["rec-sm"]["wall_end_f1"])
+        e2 = _m(numbers["rooms2"]["rec-sm"]["wall_end_f1"])
+        raw1 = _m(numbers["rooms1"]["raw"]["wall_end_f1"])
+        claims.append(
+            (
+                "A wall-end cluster grows when Rec-SM is trained on Rooms1 (F1 at least 0.1 above the raw "
+                "readings') but not on Rooms2 (F1 lower than on Rooms1)",
+                f"Rooms1 {e1:.2f} (raw {raw1:.2f}), Rooms2 {e2:.2f}",
+                _verdict([e1, e2, raw1], e1 >= raw1 + 0.1 and e2 < e1),
+            )
+        )
+    for source, event, targets in (
+        ("square", "corner", ("rooms1", "rooms2")),
+        ("rooms1", "wall_end", ("rooms2",)),
+    ):
+        key = run_name(source, "rec-sm", 0)
+        found = [f"{key}__to__{w}" in rep.transfers for w in targets]
+        if not all(found):
+            continue
+        fit = rep.transfers[f"{key}__to__{targets[0]}"]["fit_analysis"]
+        cluster = fit["events"][event]["cluster"]
+        fit_f1 = fit["events"][event]["f1"]
+        to = {
+            w: cluster_f1(rep.transfers[f"{key}__to__{w}"]["analysis"], cluster, event)
+            for w in targets
+        }
+        label = event.replace("_", " ")
+        claims.append(
+            (
+                f"Transfer: {source}'s {label} cluster (#{cluster}), applied unchanged, still finds "
+                f"{label}s in {' and '.join(targets)} (its F1 there at least half of that on {source})",
+                f"{source} {fit_f1:.2f}, " + ", ".join(f"{w} {v:.2f}" for w, v in to.items()),
+                _verdict([fit_f1, *to.values()], min(to.values()) >= 0.5 * fit_f1),
+            )
+        )
+    return claims
+
+
+__all__ = ["MODEL_NAMES", "claim_numbers", "cluster_f1", "fmt_ms", "paper_claims", "run_name"]
