@@ -9,6 +9,7 @@ from __future__ import annotations
 import base64
 import html
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -355,7 +356,9 @@ def write_report(rep, argv: list[str], hardware: dict) -> tuple[Path, Path]:
                 cells.append("–")
                 continue
             c = fit["events"][e]["cluster"]
-            cells.append(f"#{c}: {fit['events'][e]['f1']:.2f} → {cluster_f1(applied, c, e):.2f}")
+            there = cluster_f1(applied, c, e)
+            there_text = "none there" if math.isnan(there) else f"{there:.2f}"
+            cells.append(f"#{c}: {fit['events'][e]['f1']:.2f} → {there_text}")
         body.append(cells)
     b.append(table(["fitted → applied", "corner F1", "wall-end F1", "nothing F1"], body))
     for name in rep.transfers:
