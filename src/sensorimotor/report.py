@@ -219,6 +219,26 @@ def write_report(rep, argv: list[str], hardware: dict) -> tuple[Path, Path]:
         h(3, "Wall time of each stage (this invocation)"),
         table(["stage", "seconds", "jobs"], rows),
     ]
+    rows = []
+    total_train = 0.0
+    for world, kind, seed in rep.runs:
+        res = json.loads((rep.run_dir(world, kind, seed) / "result.json").read_text())
+        total_train += res["seconds"]
+        rows.append(
+            [
+                rep.run_name(world, kind, seed),
+                str(res["epochs"]),
+                str(res["best_epoch"]),
+                f"{res['best_val_error']:.5f}",
+                res["stopped"],
+                f"{res['seconds']:.0f}",
+            ]
+        )
+    rows.append(["all runs", "", "", "", "", f"{total_train:.0f}"])
+    b += [
+        h(3, "Training of each run (when it was trained; one thread each)"),
+        table(["run", "epochs", "best epoch", "best val error", "stopped by", "seconds"], rows),
+    ]
 
     b.append(h(2, "Worlds, behaviour and perception (paper Figs. 1-3)"))
     b.append(image(figs["worlds"], "The three worlds (Fig. 1)"))

@@ -120,10 +120,12 @@ def analyze_files(
         run = RAW
         if fit_db is not None:
             _check_same_layout(fit_db, db)
-    out = _out_dir(out)
-
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: is a file, not an output folder")
     source = _analyze(run, fit_db, seed) if fit_db is not None else None
     result = _analyze(run, db, seed, source)
+    out = _out_dir(out)  # made only once the analysis has succeeded
     part = db.take(SPLIT)
     files = []
     pca_title = "PCA" + (f" fitted on {fit_db.world.name}" if fit_db is not None else "")
