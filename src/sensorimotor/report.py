@@ -116,6 +116,24 @@ def to_html(blocks: list[Block], title: str) -> str:
 # --- numbers -----------------------------------------------------------------------------------
 
 
+def paper_agreement(rows: list[dict], worlds: list[str], tolerance: float = 0.25) -> str:
+    """A sentence: how many Square-trained cells lie within ``tolerance`` of the paper's."""
+    inside, outside = [], []
+    for row in rows:
+        for w in worlds:
+            paper = PAPER_TABLE_I.get(row["model"], {}).get(w)
+            if paper is None or w not in row["cells"]:
+                continue
+            ratio = row["cells"][w]["mean"] / paper - 1
+            (inside if abs(ratio) <= tolerance else outside).append(
+                f"{row['name']} on {w} ({ratio:+.0%})"
+            )
+    text = (
+        f"Cells within {tolerance:.0%} of the paper: {len(inside)} of {len(inside) + len(outside)}"
+    )
+    return text + (f"; outside: {', '.join(outside)}." if outside else ".")
+
+
 # --- figures -------------------------------------------------------------------------------------
 
 
@@ -288,6 +306,8 @@ def write_report(rep, argv: list[str], hardware: dict) -> tuple[Path, Path]:
             ]
         )
         b += [h(3, f"Trained on {trained_on}"), table(header, body)]
+        if trained_on == "square":
+            b.append(p(paper_agreement(rows_t, t["worlds"])))
 
     numbers = claim_numbers(rep.analyses, rep.runs, worlds)
     b.append(h(2, "Inside the representations (paper Figs. 4-9)"))
