@@ -244,10 +244,13 @@ def test_cli_analyze_raw_writes_figures_and_metrics(cli, square_db_path, tmp_pat
     assert "KNN-MSE" in proc.stdout
     assert sorted(p.name for p in out.iterdir()) == [
         "clusters.png",
+        "clusters.svg",
         "metrics.json",
         "pca.npz",
         "pca.png",
+        "pca.svg",
     ]
+    assert (out / "clusters.svg").read_text().lstrip().startswith("<?xml")
     m = json.loads((out / "metrics.json").read_text())
     assert m["run"] == "raw"
     assert m["fit_analysis"] is None

@@ -413,13 +413,14 @@ def analyze(
     seed: Annotated[
         int, typer.Option(min=0, max=MAX_SEED, help="Seed of k-means, the probes and the drawings.")
     ] = 0,
+    svg: Annotated[bool, typer.Option(help="Also save each figure as SVG.")] = True,
 ) -> None:
     """Cluster a representation of a test split (k-means, k = 20), score it against the
     ground-truth events, draw its PCA and clusters, and write metrics.json."""
     from sensorimotor.analysis import analyze_files, summary_lines
 
     with err_console.status(f"analysing {run} on {data}"):
-        result = analyze_files(run, data, out, fit_data, seed)
+        result = analyze_files(run, data, out, fit_data, seed, svg=svg)
     m = result.metrics
     if m["fit_analysis"] is not None:
         print(f"{m['model']}, fitted on {m['fit_data']}:")

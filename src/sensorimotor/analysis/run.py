@@ -104,9 +104,11 @@ def analyze_files(
     out: str | Path,
     fit_data: str | Path | None = None,
     seed: int = 0,
+    svg: bool = False,
 ) -> AnalyzeResult:
     """Analyse ``run``'s representation (``"raw"`` or a run folder) of ``data``'s test split and
-    write the figures and ``metrics.json`` into ``out`` (see the module docstring)."""
+    write the figures (PNG, and SVG with ``svg``) and ``metrics.json`` into ``out`` (see the
+    module docstring)."""
     from sensorimotor.analysis_plots import plot_clusters, plot_pca, plot_transfer
     from sensorimotor.plots import save_figure
 
@@ -130,7 +132,7 @@ def analyze_files(
     files = []
     pca_title = "PCA" + (f" fitted on {fit_db.world.name}" if fit_db is not None else "")
     ax = plot_pca(result.pc, part.sensors.min(axis=1), title=f"{pca_title}: {db.world.name}")
-    files += save_figure(ax.figure, out / "pca.png")
+    files += save_figure(ax.figure, out / "pca.png", svg=svg)
     name = RAW if run == RAW else run.kind
     if source is None:
         fig = plot_clusters(
@@ -158,8 +160,8 @@ def analyze_files(
             titles=source.cluster_titles(),
             suptitle=f"{name} on {fit_db.world.name}: {len(fit_db.take(SPLIT)):,} test steps",
         )
-        files += save_figure(fit_fig, out / "clusters_fit.png")
-    files += save_figure(fig, out / "clusters.png")
+        files += save_figure(fit_fig, out / "clusters_fit.png", svg=svg)
+    files += save_figure(fig, out / "clusters.png", svg=svg)
 
     metrics = {
         "run": RAW if run == RAW else str(run.path),
