@@ -19,21 +19,15 @@ from conftest import assert_one_line_error
 STAGES = ("data", "train", "evaluate", "analyze", "report")
 
 
+def _command(out: Path, *extra: str) -> list[str]:
+    """`reproduce --scale smoke` into ``out`` with two workers, as a subprocess command line."""
+    smoke = ["reproduce", "--scale", "smoke", "--out", str(out), "--workers", "2"]
+    return [sys.executable, "-m", "sensorimotor", *smoke, *extra]
+
+
 def _reproduce(out: Path, *extra: str, timeout: float = 900) -> subprocess.CompletedProcess:
     return subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "sensorimotor",
-            "reproduce",
-            "--scale",
-            "smoke",
-            "--out",
-            str(out),
-            "--workers",
-            "2",
-            *extra,
-        ],
+        _command(out, *extra),
         capture_output=True,
         text=True,
         timeout=timeout,
@@ -114,18 +108,7 @@ def test_rerun_uses_the_cache_and_a_deleted_stage_is_redone_alone(smoke):
 def test_killed_during_training_resumes_to_the_same_table(smoke, tmp_path):
     out = tmp_path / "killed"
     proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "sensorimotor",
-            "reproduce",
-            "--scale",
-            "smoke",
-            "--out",
-            str(out),
-            "--workers",
-            "2",
-        ],
+        _command(out),
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
         start_new_session=True,

@@ -312,6 +312,9 @@ def reproduce(
                     name = f"{world}__{model}__s" + ",".join(str(sd) for sd, _ in stack)
                     args = (str(rep.data[world]), stack, config, data_hash[world])
                     jobs.append(Job(name, _train_stack_job, args))
+        # longest first (Rec-SM trains longest, S shortest): the workers finish closer together
+        cost = {"rec-sm": 0, "sm": 1, "rec-s": 2, "s": 3}
+        jobs.sort(key=lambda job: cost[job.name.split("__")[1]])
         rep.timings["train"] = {"jobs": n_train, "cached": len(rep.runs) - n_train}
         log(
             f"  {n_train} trainings to run in {len(jobs)} jobs (S and SM seeds stacked), "

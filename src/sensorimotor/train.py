@@ -143,7 +143,11 @@ def epoch_generator(seed: int, epoch: int) -> torch.Generator:
 
 
 def train_epoch_feedforward(model, opt, s, m, batch: int, gen: torch.Generator) -> float:
-    """One epoch over shuffled transitions; returns the mean training error."""
+    """One epoch over shuffled transitions; returns the mean training error.
+
+    The plain autograd loop: ``train`` runs S and SM through ``stacked`` instead, which tests and
+    ``benchmarks/bench_train.py`` check against this, bit for bit and in speed.
+    """
     n = len(s) - 1
     perm = torch.randperm(n, generator=gen).to(s.device)
     xs, xm, y = s[:-1][perm], m[:-1][perm], s[1:][perm]  # (n, 5), (n, 2), (n, 5) gathered once
@@ -498,12 +502,8 @@ def train(
     epoch = start_epoch
     while (stopped := stop_reason(config, stopper, epoch, elapsed)) is None:
         t0 = time.perf_counter()
-        model.train()
-        if model_config.recurrent:
-            train_error = train_epoch_recurrent(model, opt, s, m, config.batch_size, config.horizon)
-        else:
-            gen = epoch_generator(config.seed, epoch)
-            train_error = train_epoch_feedforward(model, opt, s, m, config.batch_size, gen)
+        model.train()  # recurrent models only: S and SM returned above
+        train_error = train_epoch_recurrent(model, opt, s, m, config.batch_size, config.horizon)
         seconds = time.perf_counter() - t0
         val_error = model_error(model, vs, vm)
         improved, best = stopper.update(epoch, val_error)
