@@ -213,7 +213,10 @@ def paper_claims(rep, numbers: dict) -> list[tuple[str, str, bool | None]]:
                 f"Transfer: {source}'s {label} cluster (#{cluster}), applied unchanged, still finds "
                 f"{label}s in {' and '.join(targets)} (its F1 there at least half of that on {source})",
                 f"{source} {fit_f1:.2f}, " + ", ".join(f"{w} {v:.2f}" for w, v in to.items()),
-                _verdict([fit_f1, *to.values()], min(to.values()) >= 0.5 * fit_f1),
+                # no verdict when there is no such cluster to transfer (F1 below 0.3 where it grew)
+                _verdict([fit_f1, *to.values()], min(to.values()) >= 0.5 * fit_f1)
+                if fit_f1 >= 0.3
+                else None,
             )
         )
     return claims
