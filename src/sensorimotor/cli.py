@@ -415,8 +415,12 @@ def analyze(
     ] = 0,
     svg: Annotated[bool, typer.Option(help="Also save each figure as SVG.")] = True,
 ) -> None:
-    """Cluster a representation of a test split (k-means, k = 20), score it against the
-    ground-truth events, draw its PCA and clusters, and write metrics.json."""
+    """Cluster a representation (k-means, k = 20), score it against ground-truth events, draw it.
+
+    RUN is a run folder or `raw` (the readings themselves); the test split of --data is analysed;
+    with --fit-data, PCA and k-means are fitted on that database and applied to --data (transfer).
+    Writes pca.png, clusters.png (and SVGs), pca.npz and metrics.json into --out.
+    """
     from sensorimotor.analysis import analyze_files, summary_lines
 
     with err_console.status(f"analysing {run} on {data}"):
