@@ -11,7 +11,7 @@ import math
 
 from sensorimotor.evaluate import mean_sd
 from sensorimotor.models import MODEL_KINDS, MODEL_NAMES
-from sensorimotor.train import run_name
+from sensorimotor.runs import run_name
 
 SHORT = {"raw": "raw", "s": "S", "sm": "SM", "rec-s": "Rec-S", "rec-sm": "Rec-SM"}
 

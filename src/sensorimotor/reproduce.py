@@ -188,7 +188,7 @@ class Reproduction:
     transfers: dict[str, dict] = field(default_factory=dict)
 
     def run_name(self, world: str, model: str, seed: int) -> str:
-        from sensorimotor.train import run_name
+        from sensorimotor.runs import run_name
 
         return run_name(world, model, seed)
 

@@ -41,24 +41,26 @@ from sensorimotor.data import load_database
 from sensorimotor.errors import InputError
 from sensorimotor.evaluate import split_tensors
 from sensorimotor.models import ModelConfig, SensorimotorEncoder, build_model
-from sensorimotor.train import (
+from sensorimotor.runs import (
     EarlyStopping,
     EpochRecord,
-    FusedAdam,
     TrainConfig,
     TrainResult,
     check_run_dir,
-    check_trainable,
-    epoch_generator,
     finish_run,
     load_checkpoint,
     open_run_dir,
-    resolve_device,
     run_meta,
     run_name,
     save_epoch,
-    stop_reason,
     stored_result,
+)
+from sensorimotor.train import (
+    FusedAdam,
+    check_trainable,
+    epoch_generator,
+    resolve_device,
+    stop_reason,
 )
 
 RELU_GRAD = torch.ops.aten.threshold_backward.default  # autograd's ReLU backward, in one call

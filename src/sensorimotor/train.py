@@ -6,115 +6,36 @@ each batch is the next 20 steps of every stream, the LSTM state carried (detache
 batch to the next and reset at each epoch (truncated back-propagation through time).
 
 The data live as tensors and are gathered once per epoch so that each batch is a view; Adam is
-fused; nothing in the step loop talks to the host. A run folder holds ``config.json``,
-``model.pt`` (best weights), ``checkpoint.pt`` (after every epoch, for ``--resume``),
-``history.csv`` and, once finished, ``result.json``.
+fused; nothing in the step loop talks to the host. What a run is and what its folder holds is in
+``runs.py``.
 """
 
 from __future__ import annotations
 
-import csv
-import io
-import json
-import math
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict
 from pathlib import Path
 
 import torch
 
-from sensorimotor import __version__
-from sensorimotor.data import Database, atomic_path, file_hash, load_database
+from sensorimotor.data import Database, load_database
 from sensorimotor.errors import InputError
 from sensorimotor.evaluate import model_error, split_tensors
 from sensorimotor.models import ModelConfig, build_model
-
-
-@dataclass(frozen=True)
-class TrainConfig:
-    """How one model is trained; the defaults are the paper's (section V.A)."""
-
-    model: str = "rec-sm"
-    """s, sm, rec-s or rec-sm."""
-    seed: int = 0
-    """Seeds the initial weights and the data order."""
-    lr: float = 1e-3
-    """Adam's learning rate."""
-    batch_size: int = 64
-    """Transitions per step (feed-forward); streams per step (recurrent)."""
-    horizon: int = 20
-    """Truncation horizon of back-propagation through time (recurrent models)."""
-    patience: int = 10
-    """Stop after this many epochs in a row without improvement."""
-    min_ratio: float = 0.95
-    """An epoch improves when its validation error is below this fraction of the best so far."""
-    max_epochs: int | None = None
-    """Cap on epochs (None: early stopping alone)."""
-    max_minutes: float | None = None
-    """Cap on training wall time, checked after each epoch (None: no cap)."""
-    device: str = "cpu"
-    """cpu or cuda."""
-    threads: int = 1
-    """Torch threads (one is fastest for these tiny models; two in one process are slower)."""
-
-
-@dataclass
-class EarlyStopping:
-    """The paper's rule: improve = below ``min_ratio`` x the best counted error; stop after
-    ``patience`` epochs without. The kept weights are those of the lowest error seen."""
-
-    patience: int = 10
-    min_ratio: float = 0.95
-    reference: float = math.inf  # error of the last counted improvement
-    lowest: float = math.inf  # lowest error seen (its weights are kept)
-    best_epoch: int = -1
-    waited: int = 0
-
-    def update(self, epoch: int, error: float) -> tuple[bool, bool]:
-        """Record one epoch's validation error; returns (counts as improvement, new lowest)."""
-        improved = error < self.min_ratio * self.reference
-        if improved:
-            self.reference = error
-            self.waited = 0
-        else:
-            self.waited += 1
-        lowest = error < self.lowest
-        if lowest:
-            self.lowest, self.best_epoch = error, epoch
-        return improved, lowest
-
-    @property
-    def should_stop(self) -> bool:
-        return self.waited >= self.patience
-
-
-@dataclass(frozen=True)
-class EpochRecord:
-    epoch: int
-    train_error: float
-    val_error: float
-    improved: bool
-    best: bool
-    seconds: float
-    samples_per_s: float
-    elapsed: float = 0.0  # training seconds of the whole run so far
-
-
-@dataclass
-class TrainResult:
-    run_dir: Path
-    best_epoch: int
-    best_val_error: float
-    epochs: int
-    stopped: str  # "early stopping" | "max epochs" | "time cap"
-    seconds: float
-    history: list[EpochRecord] = field(default_factory=list)
-
-
-def run_name(world: str, model: str, seed: int) -> str:
-    """The name of a run folder (CleanRL style): ``{world}__{model}__s{seed}``."""
-    return f"{world}__{model}__s{seed}"
+from sensorimotor.runs import (
+    EarlyStopping,
+    EpochRecord,
+    TrainConfig,
+    TrainResult,
+    check_run_dir,
+    finish_run,
+    load_checkpoint,
+    open_run_dir,
+    run_meta,
+    save_epoch,
+    stored_result,
+)
 
 
 def stream_layout(n: int, streams: int) -> tuple[torch.Tensor, torch.Tensor]:
@@ -257,37 +178,6 @@ def make_optimizer(model: torch.nn.Module, config: TrainConfig) -> FusedAdam:
     return FusedAdam(model.parameters(), lr=config.lr)
 
 
-def _write_text(path: Path, text: str) -> None:
-    with atomic_path(path) as tmp:
-        tmp.write_text(text)
-
-
-def _torch_save(obj, path: Path) -> None:
-    with atomic_path(path) as tmp:
-        torch.save(obj, tmp)
-
-
-def _history_csv(history: list[EpochRecord]) -> str:
-    buf = io.StringIO()
-    writer = csv.writer(buf)
-    writer.writerow(
-        ["epoch", "train_error", "val_error", "improved", "best", "seconds", "samples_per_s"]
-    )
-    for r in history:
-        writer.writerow(
-            [
-                r.epoch,
-                f"{r.train_error:.8g}",
-                f"{r.val_error:.8g}",
-                int(r.improved),
-                int(r.best),
-                f"{r.seconds:.3f}",
-                f"{r.samples_per_s:.0f}",
-            ]
-        )
-    return buf.getvalue()
-
-
 def resolve_device(device: str) -> str:
     if device == "auto":
         return "cuda" if torch.cuda.is_available() else "cpu"
@@ -296,104 +186,6 @@ def resolve_device(device: str) -> str:
     if device == "cuda" and not torch.cuda.is_available():
         raise InputError("--device cuda: no CUDA device is available here")
     return device
-
-
-def run_meta(data: Path, db: Database, config: TrainConfig, sha256: str | None = None) -> dict:
-    """What a run folder's ``config.json`` records: model, training config, data, version."""
-    return {
-        "model": ModelConfig(kind=config.model).to_dict(),
-        "train": {k: v for k, v in asdict(config).items() if k != "device"},
-        "data": {
-            "path": str(data),
-            "sha256": sha256 or file_hash(data),
-            "world": db.meta["world"]["name"],
-            "steps": len(db),
-            "seed": db.meta.get("seed"),
-            "sensor_layout": db.meta.get("sensor_layout"),
-        },
-        "version": __version__,
-    }
-
-
-def check_run_dir(out: Path, meta: dict, resume: bool) -> None:
-    """Refuse an ``out`` that is a file, that holds a run without ``resume``, or (with
-    ``resume``) a run of another model, training config or data."""
-    if out.exists() and not out.is_dir():
-        raise InputError(f"{out}: exists and is not a folder")
-    cfg_path = out / "config.json"
-    if cfg_path.exists() and not resume:
-        raise InputError(
-            f"{out}: already holds a run; pass --resume to continue it, or another --out"
-        )
-    if resume and cfg_path.exists():
-        try:
-            old = json.loads(cfg_path.read_text())
-            if not all(isinstance(old.get(k), dict) for k in ("model", "train", "data")):
-                raise ValueError("missing its model, train or data table")
-        except (ValueError, AttributeError) as err:
-            raise InputError(f"{cfg_path}: corrupt run config ({err})") from None
-        for key in ("model", "train", "data"):
-            a, b = old.get(key, {}), meta[key]
-            if key == "data":
-                a, b = a.get("sha256"), b["sha256"]
-            if key == "train":  # the caps may change between sessions; the algorithm may not
-                caps = ("max_epochs", "max_minutes")
-                a = {k: v for k, v in a.items() if k not in caps}
-                b = {k: v for k, v in b.items() if k not in caps}
-            if a != b:
-                raise InputError(
-                    f"{out}: --resume with a different {key} than the run was started with"
-                )
-
-
-def open_run_dir(out: Path, meta: dict) -> None:
-    """Create the run folder and write its ``config.json``."""
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise InputError(f"{out}: cannot create run folder ({err.strerror})") from None
-    _write_text(out / "config.json", json.dumps(meta, indent=2))
-
-
-def load_checkpoint(
-    out: Path, device: str, model: torch.nn.Module, opt: FusedAdam
-) -> tuple[EarlyStopping, list[EpochRecord], int, float]:
-    """Restore ``model`` and ``opt`` from ``out/checkpoint.pt``; returns (stopper, history,
-    next epoch, training seconds so far). InputError naming the file if it is corrupt."""
-    ckpt_path = out / "checkpoint.pt"
-    try:
-        ckpt = torch.load(ckpt_path, map_location=device, weights_only=True)
-        model.load_state_dict(ckpt["model"])
-        opt.load_state_dict(ckpt["optimizer"])
-        stopper = EarlyStopping(**ckpt["stopper"])
-        history = [EpochRecord(**r) for r in ckpt["history"]]
-        return stopper, history, ckpt["epoch"] + 1, ckpt["seconds"]
-    except Exception as err:
-        msg = str(err).splitlines()[0] if str(err) else err.__class__.__name__
-        raise InputError(f"{ckpt_path}: corrupt checkpoint ({msg})") from None
-
-
-def stored_result(out: Path, history: list[EpochRecord]) -> TrainResult | None:
-    """The result of a run that early stopping has finished for good (its ``result.json``);
-    None if it has none or was stopped by a cap, which a resumed session may lift."""
-    result_path = out / "result.json"
-    if not result_path.exists():
-        return None
-    try:
-        res = json.loads(result_path.read_text())
-        if res["stopped"] != "early stopping":
-            return None
-    except (ValueError, KeyError, TypeError):
-        return None  # unreadable: the checkpoint decides (the run goes on from it)
-    return TrainResult(
-        out,
-        res["best_epoch"],
-        res["best_val_error"],
-        res["epochs"],
-        res["stopped"],
-        res["seconds"],
-        history,
-    )
 
 
 def stop_reason(config: TrainConfig, stopper: EarlyStopping, epoch: int, elapsed: float):
@@ -405,55 +197,6 @@ def stop_reason(config: TrainConfig, stopper: EarlyStopping, epoch: int, elapsed
     if config.max_minutes is not None and elapsed >= 60 * config.max_minutes:
         return "time cap"
     return None
-
-
-def save_epoch(
-    out: Path,
-    model: torch.nn.Module,
-    opt_state: dict,
-    epoch: int,
-    elapsed: float,
-    stopper: EarlyStopping,
-    history: list[EpochRecord],
-) -> None:
-    """After an epoch: ``model.pt`` if it is the best so far, ``checkpoint.pt``, ``history.csv``."""
-    if history[-1].best:
-        _torch_save(model.state_dict(), out / "model.pt")
-    _torch_save(
-        {
-            "model": model.state_dict(),
-            "optimizer": opt_state,
-            "epoch": epoch,
-            "seconds": elapsed,
-            "stopper": asdict(stopper),
-            "history": [asdict(r) for r in history],
-        },
-        out / "checkpoint.pt",
-    )
-    _write_text(out / "history.csv", _history_csv(history))
-
-
-def finish_run(
-    out: Path, stopper: EarlyStopping, history: list[EpochRecord], stopped: str, elapsed: float
-) -> TrainResult:
-    """Write ``result.json``: the run is finished."""
-    result = TrainResult(
-        out, stopper.best_epoch, stopper.lowest, len(history), stopped, elapsed, history
-    )
-    _write_text(
-        out / "result.json",
-        json.dumps(
-            {
-                "best_epoch": result.best_epoch,
-                "best_val_error": result.best_val_error,
-                "epochs": result.epochs,
-                "stopped": stopped,
-                "seconds": elapsed,
-            },
-            indent=2,
-        ),
-    )
-    return result
 
 
 def train(
