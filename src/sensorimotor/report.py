@@ -68,11 +68,12 @@ def to_markdown(blocks: list[Block], root: Path) -> str:
 
 
 def _inline_md(text: str) -> str:
-    """Escape, then the two bits of Markdown the report uses inline: **bold** and `code`."""
+    """Escape, then the bits of Markdown the report uses inline: **bold**, *italics*, `code`."""
     import re
 
     text = html.escape(text)
     text = re.sub(r"\*\*(.+?)\*\*", r"<b>\1</b>", text)
+    text = re.sub(r"\*(.+?)\*", r"<i>\1</i>", text)
     return re.sub(r"`(.+?)`", r"<code>\1</code>", text)
 
 
