@@ -1,0 +1,39 @@
+"""Worker processes: every job runs once, results come back by name, a failure is kept apart."""
+
+from __future__ import annotations
+
+import math
+import operator
+
+import pytest
+
+from sensorimotor.parallel import Job, run_jobs
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_results_by_name_and_failures_kept_apart(workers):
+    jobs = [Job(f"add{i}", operator.add, (i, 10)) for i in range(5)]
+    jobs.append(Job("bad", math.sqrt, (-1.0,)))
+    done = []
+    results, failures = run_jobs(jobs, workers, on_done=lambda name, r: done.append(name))
+    assert results == {f"add{i}": i + 10 for i in range(5)}
+    assert [f.name for f in failures] == ["bad"]
+    assert isinstance(failures[0].error, ValueError)
+    assert sorted(done) == sorted(results)
+
+
+def test_in_process_progress_reaches_the_printer():
+    from sensorimotor.parallel import report
+
+    lines = []
+
+    def job() -> int:
+        report("run-a", "epoch 0")
+        return 1
+
+    results, failures = run_jobs(
+        [Job("run-a", job)], 1, on_progress=lambda n, m: lines.append((n, m))
+    )
+    assert results == {"run-a": 1}
+    assert not failures
+    assert lines == [("run-a", "epoch 0")]
