@@ -225,7 +225,7 @@ def evaluate(
 
     from rich.table import Table
 
-    from sensorimotor.data import atomic_path, check_writable, load_database
+    from sensorimotor.data import check_writable, load_database, write_text_atomic
     from sensorimotor.evaluate import evaluate_run, load_run
     from sensorimotor.models import MODEL_NAMES
 
@@ -244,8 +244,7 @@ def evaluate(
         table.add_row(world, f"{err:.5f}", f"{b['mean']:.5f}", f"{b['copy_last']:.5f}")
     Console().print(table)
     if json_out is not None:
-        with atomic_path(json_out) as tmp:
-            tmp.write_text(json.dumps(res, indent=2))
+        write_text_atomic(json_out, json.dumps(res, indent=2))
 
 
 @app.command()
@@ -261,7 +260,7 @@ def table(
 
     from rich.table import Table
 
-    from sensorimotor.data import atomic_path, check_writable, load_database
+    from sensorimotor.data import check_writable, load_database, write_text_atomic
     from sensorimotor.evaluate import load_run
     from sensorimotor.tables import PAPER_TABLE_I, build_table, fmt_cell
 
@@ -301,8 +300,7 @@ def table(
         t.add_row(*cells)
         Console(width=max(100, Console().width)).print(t)
     if json_out is not None:
-        with atomic_path(json_out) as tmp:
-            tmp.write_text(json.dumps(result, indent=2))
+        write_text_atomic(json_out, json.dumps(result, indent=2))
 
 
 def _save_plot(fig, out: Path, svg: bool) -> None:

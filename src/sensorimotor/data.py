@@ -164,6 +164,14 @@ def atomic_path(path: Path, suffix: str = ""):
             os.unlink(tmp)
 
 
+def write_text_atomic(path: str | Path, text: str) -> Path:
+    """Write a text file through a temporary file in the same folder, then rename."""
+    path = Path(path)
+    with atomic_path(path, path.suffix) as tmp:
+        tmp.write_text(text)
+    return path
+
+
 def save_database(db: Database, path: str | Path) -> Path:
     """Write ``db`` to ``path`` (.npz) through a temporary file in the same folder."""
     path = Path(path)

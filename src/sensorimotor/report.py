@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from sensorimotor.claims import claim_numbers, cluster_f1, fmt_ms, paper_claims
-from sensorimotor.data import atomic_path
+from sensorimotor.data import write_text_atomic
 from sensorimotor.models import MODEL_KINDS, MODEL_NAMES
 from sensorimotor.tables import PAPER_TABLE_I, fmt_cell
 
@@ -420,10 +420,9 @@ def write_report(rep, argv: list[str], hardware: dict) -> tuple[Path, Path]:
 
     md = to_markdown(b, out)
     page = to_html(b, "sensorimotor reproduction report")
-    with atomic_path(out / "report.md", ".md") as tmp:
-        tmp.write_text(md)
-    with atomic_path(out / "report.html", ".html") as tmp:
-        tmp.write_text(page)
-    with atomic_path(out / "claims.json", ".json") as tmp:
-        tmp.write_text(json.dumps({"numbers": numbers, "claims": rows_c}, indent=2))
+    write_text_atomic(out / "report.md", md)
+    write_text_atomic(out / "report.html", page)
+    write_text_atomic(
+        out / "claims.json", json.dumps({"numbers": numbers, "claims": rows_c}, indent=2)
+    )
     return out / "report.md", out / "report.html"

@@ -19,14 +19,15 @@ import shutil
 import sys
 import time
 from collections.abc import Callable
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from sensorimotor import __version__
-from sensorimotor.data import atomic_path, file_hash
+from sensorimotor.data import file_hash, write_text_atomic
 from sensorimotor.errors import InputError
 from sensorimotor.models import MODEL_KINDS
-from sensorimotor.parallel import Job, report, run_jobs
+from sensorimotor.parallel import Job, default_workers, report, run_jobs
 
 WORLDS = ("square", "rooms1", "rooms2")
 TRANSFER_FROM = ("square", "rooms1")  # paper Figs. 8-9: Rec-SM clusters carried to other worlds
@@ -68,8 +69,7 @@ def _read_key(path: Path) -> str | None:
 
 
 def _write_json(path: Path, obj) -> None:
-    with atomic_path(path, ".json") as tmp:
-        tmp.write_text(json.dumps(obj, indent=2) + "\n")
+    write_text_atomic(path, json.dumps(obj, indent=2) + "\n")
 
 
 # --- jobs (top-level functions: they run in worker processes) --------------------------------
@@ -196,23 +196,13 @@ class Reproduction:
         return self.out / "runs" / self.run_name(world, model, seed)
 
 
+@contextmanager
 def _stage(rep: Reproduction, name: str, log: Callable[[str], None]):
-    """Context manager timing one stage into ``rep.timings``."""
-
-    class _Timer:
-        def __enter__(self):
-            self.t0 = time.perf_counter()
-            log(f"[bold]stage {name}[/bold]")
-            return self
-
-        def __exit__(self, *exc):
-            rep.timings[name] = {
-                **rep.timings.get(name, {}),
-                "seconds": time.perf_counter() - self.t0,
-            }
-            return False
-
-    return _Timer()
+    """Time one stage into ``rep.timings``."""
+    log(f"[bold]stage {name}[/bold]")
+    t0 = time.perf_counter()
+    yield
+    rep.timings[name] = {**rep.timings.get(name, {}), "seconds": time.perf_counter() - t0}
 
 
 def _raise_failures(failures, log) -> None:
@@ -416,7 +406,6 @@ def reproduce(
 
 def hardware() -> dict:
     """What the numbers were measured on."""
-    import os
 
     import torch
 
@@ -424,9 +413,7 @@ def hardware() -> dict:
         "python": platform.python_version(),
         "platform": platform.platform(),
         "processor": _cpu_name(),
-        "cpus": len(os.sched_getaffinity(0))
-        if hasattr(os, "sched_getaffinity")
-        else os.cpu_count(),
+        "cpus": default_workers(),
         "torch": torch.__version__,
         "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
         "sensorimotor": __version__,
@@ -442,13 +429,3 @@ def _cpu_name() -> str:
     except OSError:
         pass
     return platform.processor() or "unknown"
-
-
-def to_dict(rep: Reproduction) -> dict:
-    return {
-        "scale": asdict(rep.scale),
-        "seeds": rep.seeds,
-        "device": rep.device,
-        "workers": rep.workers,
-        "timings": rep.timings,
-    }

@@ -20,6 +20,7 @@ import torch
 
 from sensorimotor import __version__
 from sensorimotor.data import Database, atomic_path, file_hash
+from sensorimotor.data import write_text_atomic as _write_text
 from sensorimotor.errors import InputError
 from sensorimotor.models import ModelConfig
 
@@ -111,11 +112,6 @@ class TrainResult:
 def run_name(world: str, model: str, seed: int) -> str:
     """The name of a run folder (CleanRL style): ``{world}__{model}__s{seed}``."""
     return f"{world}__{model}__s{seed}"
-
-
-def _write_text(path: Path, text: str) -> None:
-    with atomic_path(path) as tmp:
-        tmp.write_text(text)
 
 
 def _torch_save(obj, path: Path) -> None:

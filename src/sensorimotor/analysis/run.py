@@ -25,7 +25,7 @@ from sensorimotor.analysis.representation import (
     analyze_representation,
     raw_representation,
 )
-from sensorimotor.data import Database, atomic_path, load_database
+from sensorimotor.data import Database, atomic_path, load_database, write_text_atomic
 from sensorimotor.errors import InputError
 from sensorimotor.sim import SensorLayout, read_sensors
 
@@ -183,8 +183,7 @@ def analyze_files(
         )
     files.append(arrays)
     path = out / "metrics.json"
-    with atomic_path(path, ".json") as tmp:
-        tmp.write_text(json.dumps(metrics, indent=2) + "\n")
+    write_text_atomic(path, json.dumps(metrics, indent=2) + "\n")
     files.append(path)
     return AnalyzeResult(metrics, files)
 
