@@ -3,8 +3,9 @@
 For S and SM: the plain eager loop (``train.train_epoch_feedforward``: nn.Module, autograd,
 ``train.FusedAdam``) beside the stacked path (``stacked.train_epoch_stacked``) with K = 1, 5
 and 10 seeds at once. For Rec-S and Rec-SM: the plain loop (``train.train_epoch_recurrent``)
-in one process, and two worker processes training independent seeds at the same time. Every
-ratio is to the plain loop measured in the same run; the time of one epoch over an
+in one worker process, and two training independent seeds at the same time, each with glibc's
+default allocator and with ``train.keep_freed_memory`` (as training runs). Every ratio is to
+the plain loop (glibc default, for the recurrent models) measured in the same run; the time of one epoch over an
 800,000-step train split (a 1 M-step database) is extrapolated from the samples/s.
 
 The data are a generated Square database. Each measurement is the best of a few repeats of a
@@ -31,6 +32,7 @@ from sensorimotor.stacked import StackedEncoders, train_epoch_stacked
 from sensorimotor.train import (
     FusedAdam,
     epoch_generator,
+    keep_freed_memory,
     train_epoch_feedforward,
     train_epoch_recurrent,
 )
@@ -77,35 +79,31 @@ def bench_stacked(kind, k, s, m, warm, repeats):
     return timed(lambda i: train_epoch_stacked(net, s, m, seeds, i, BATCH), repeats)
 
 
-def bench_plain_rec(kind, s, m, warm, repeats, seed=0):
-    model = build_model(kind, seed=seed)
-    opt = FusedAdam(model.parameters())
-    train_epoch_recurrent(model, opt, *warm, BATCH, HORIZON)
-    return timed(lambda i: train_epoch_recurrent(model, opt, s, m, BATCH, HORIZON), repeats)
-
-
-def _rec_worker(kind, seed, n, warm_n, barrier, results):
+def _rec_worker(kind, seed, n, warm_n, keep, barrier, results):
     """One of the parallel processes: one thread, its own seed, timed from a common start."""
     torch.set_num_threads(1)
+    if keep:
+        keep_freed_memory()
     s, m = train_split(n)
     warm = (s[: warm_n + 1], m[: warm_n + 1])
     model = build_model(kind, seed=seed)
     opt = FusedAdam(model.parameters())
     train_epoch_recurrent(model, opt, *warm, BATCH, HORIZON)
     barrier.wait()
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     train_epoch_recurrent(model, opt, s, m, BATCH, HORIZON)
-    results.put((n, time.perf_counter() - t0))
+    results.put((n, time.perf_counter() - t0, time.process_time() - c0))
 
 
-def bench_rec_workers(kind, n, warm_n, workers: int, repeats: int) -> float:
-    """Total samples/s of ``workers`` spawned processes training seeds 0, 1, ... at once."""
+def bench_rec_workers(kind, n, warm_n, workers: int, repeats: int, keep: bool = True):
+    """Total samples/s (wall, cpu) of ``workers`` spawned processes training seeds 0, 1, ...
+    at once; ``keep``: with ``train.keep_freed_memory`` as training runs, else glibc's default."""
     ctx = mp.get_context("spawn")
-    best = 0.0
+    best, best_cpu = 0.0, 0.0
     for _ in range(repeats):
         barrier, results = ctx.Barrier(workers), ctx.Queue()
         procs = [
-            ctx.Process(target=_rec_worker, args=(kind, w, n, warm_n, barrier, results))
+            ctx.Process(target=_rec_worker, args=(kind, w, n, warm_n, keep, barrier, results))
             for w in range(workers)
         ]
         for p in procs:
@@ -113,8 +111,9 @@ def bench_rec_workers(kind, n, warm_n, workers: int, repeats: int) -> float:
         done = [results.get() for _ in procs]
         for p in procs:
             p.join()
-        best = max(best, sum(k for k, _ in done) / max(t for _, t in done))
-    return best
+        best = max(best, sum(d[0] for d in done) / max(d[1] for d in done))
+        best_cpu = max(best_cpu, sum(d[0] for d in done) / sum(d[2] for d in done) * workers)
+    return best, best_cpu
 
 
 def load() -> str:
@@ -131,6 +130,7 @@ def main() -> None:
     batches = args.batches or (300 if args.quick else 1500)
     repeats = args.repeats or (1 if args.quick else 3)
     torch.set_num_threads(1)
+    keep_freed_memory()  # as train.train and stacked.train_runs do
     console = Console(width=150)
     console.print(
         f"sensorimotor {__version__}, torch {torch.__version__}, batch {BATCH}, 1 thread, "
@@ -189,16 +189,19 @@ def main() -> None:
         console.print(f"  {kind} done ({load()})")
 
     rec_n = max(batches, 200) * BATCH  # at least 10 chunks of 20 steps in every stream
-    rs, rm = train_split(rec_n)
-    rwarm = (rs[: 2 * HORIZON * BATCH + 1], rm[: 2 * HORIZON * BATCH + 1])
+    warm_n = 2 * HORIZON * BATCH
     for kind in ("rec-s", "rec-sm"):
-        wall, cpu = bench_plain_rec(kind, rs, rm, rwarm, repeats)
-        plain = rec_n / wall
-        row(kind, "plain loop, 1 process", plain, plain, rec_n / cpu, plain)
-        total = bench_rec_workers(kind, rec_n, 2 * HORIZON * BATCH, 2, repeats)
+        total, cpu = bench_rec_workers(kind, rec_n, warm_n, 1, repeats, keep=False)
+        plain = total
+        row(kind, "plain loop, 1 process, glibc default", plain, plain, cpu, plain)
+        total, cpu = bench_rec_workers(kind, rec_n, warm_n, 1, repeats)
+        row(kind, "plain loop, 1 process", total, total, cpu, plain)
+        total, cpu = bench_rec_workers(kind, rec_n, warm_n, 2, repeats, keep=False)
+        row(kind, "2 processes, glibc default", total / 2, total, cpu, plain)
+        total, cpu = bench_rec_workers(kind, rec_n, warm_n, 2, repeats)
         met = "met" if total >= TARGETS[kind] else "NOT met"
         target = f">= {TARGETS[kind] / 1e3:.0f} k: {met}"
-        row(kind, "2 processes x 1 thread", total / 2, total, None, plain, target)
+        row(kind, "2 processes x 1 thread", total / 2, total, cpu, plain, target)
         console.print(f"  {kind} done ({load()})")
 
     console.print(table)

@@ -275,3 +275,26 @@ def test_corrupt_or_missing_checkpoint_is_refused(square_db_path, tmp_path, cli)
     proc = cli("train", "s", "--data", square_db_path, "--out", run, "--resume")
     assert_one_line_error(proc, "checkpoint.pt", "corrupt")
     assert_one_line_error(cli("evaluate", tmp_path / "nope", "--data", square_db_path), "not found")
+
+
+@pytest.mark.skipif(
+    not (
+        sys.platform.startswith("linux") and "glibc" in " ".join(__import__("platform").libc_ver())
+    ),
+    reason="glibc only",
+)
+def test_keep_freed_memory_takes_effect_and_leaves_the_numbers_alone():
+    s = torch.rand(2 * 64 * 20 + 1, 5)
+    m = torch.rand(len(s), 2)
+
+    def one_epoch():
+        model = build_model("rec-sm", seed=3)
+        opt = FusedAdam(model.parameters())
+        err = train_epoch_recurrent(model, opt, s, m, 64, 20)
+        return err, [p.detach().clone() for p in model.parameters()]
+
+    before = one_epoch()
+    assert train_mod.keep_freed_memory() is True
+    after = one_epoch()
+    assert before[0] == after[0]
+    assert all(torch.equal(a, b) for a, b in zip(before[1], after[1], strict=True))

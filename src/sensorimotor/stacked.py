@@ -422,6 +422,7 @@ def train_runs(
         open_run_dir(out, meta)
 
     torch.set_num_threads(config.threads)
+    train_mod.keep_freed_memory()
     state: list[_Run] = []
     opts: list[FusedAdam] = []
     for seed, out in zip(seeds, outs, strict=True):

@@ -178,6 +178,26 @@ def make_optimizer(model: torch.nn.Module, config: TrainConfig) -> FusedAdam:
     return FusedAdam(model.parameters(), lr=config.lr)
 
 
+def keep_freed_memory() -> bool:
+    """Keep freed memory in the process's heap instead of handing it back to the kernel.
+
+    An LSTM step allocates and frees workspaces of a few MB; by default glibc maps each afresh
+    and the kernel zero-fills its pages on first touch, 10-20 % of a recurrent step with one
+    process and more with two (``benchmarks/bench_train.py`` measures it). No effect on the
+    numbers. Returns whether it took effect (glibc only; elsewhere a no-op).
+    """
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL("libc.so.6")
+        m_trim_threshold, m_mmap_threshold = -1, -3
+        return bool(
+            libc.mallopt(m_mmap_threshold, 32 << 20) and libc.mallopt(m_trim_threshold, 1 << 30)
+        )
+    except (OSError, AttributeError):
+        return False
+
+
 def resolve_device(device: str) -> str:
     if device == "auto":
         return "cuda" if torch.cuda.is_available() else "cpu"
@@ -228,6 +248,7 @@ def train(
     open_run_dir(out, meta)
 
     torch.set_num_threads(config.threads)
+    keep_freed_memory()
     model = build_model(model_config, seed=config.seed).to(device)
     opt = make_optimizer(model, config)
     stopper = EarlyStopping(config.patience, config.min_ratio)
