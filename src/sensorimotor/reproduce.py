@@ -122,7 +122,7 @@ def _train_job(data: str, run_dir: str, config: dict, data_sha: str) -> dict:
 
 
 def _train_stack_job(data: str, runs: list[tuple[int, str]], config: dict, data_sha: str) -> dict:
-    """S or SM for several seeds in one process, stacked (``stacked.train_runs``)."""
+    """Several seeds of one model in one process, stacked (``stacked.train_runs``)."""
     from sensorimotor.data import load_database
     from sensorimotor.stacked import train_runs
     from sensorimotor.train import TrainConfig
@@ -270,9 +270,10 @@ def reproduce(
     # train --------------------------------------------------------------------------------
     with _stage(rep, "train", log):
         jobs, n_train = [], 0
+        stack_recurrent = device == "cpu"  # the stacked LSTM is CPU only
         for world in WORLDS:
             for model in MODEL_KINDS:
-                stack = []  # S and SM seeds that need training: one stacked job
+                stack = []  # seeds that need training: one stacked job
                 for seed in range(seeds):
                     rep.runs.append((world, model, seed))
                     config = {
@@ -287,7 +288,7 @@ def reproduce(
                     if done and run_matches(run, data_hash[world], config):
                         continue
                     n_train += 1
-                    if model in ("s", "sm"):
+                    if model in ("s", "sm") or stack_recurrent:
                         stack.append((seed, str(run)))
                         continue
                     args = (str(rep.data[world]), str(run), config, data_hash[world])
@@ -303,11 +304,11 @@ def reproduce(
                     args = (str(rep.data[world]), stack, config, data_hash[world])
                     jobs.append(Job(name, _train_stack_job, args))
         # longest first (Rec-SM trains longest, S shortest): the workers finish closer together
-        cost = {"rec-sm": 0, "sm": 1, "rec-s": 2, "s": 3}
+        cost = {"rec-sm": 0, "rec-s": 1, "sm": 2, "s": 3}
         jobs.sort(key=lambda job: cost[job.name.split("__")[1]])
         rep.timings["train"] = {"jobs": n_train, "cached": len(rep.runs) - n_train}
         log(
-            f"  {n_train} trainings to run in {len(jobs)} jobs (S and SM seeds stacked), "
+            f"  {n_train} trainings to run in {len(jobs)} jobs (seeds stacked), "
             f"{len(rep.runs) - n_train} cached, {workers} worker(s)"
         )
         _, failures = run_jobs(jobs, workers, progress)

@@ -89,15 +89,24 @@ def linear_names(config: ModelConfig) -> list[str]:
     return [n for n, mod in model.named_modules() if isinstance(mod, torch.nn.Linear)]
 
 
+def parameter_layout(config: ModelConfig) -> tuple[list[str], list[torch.Size]]:
+    """Names and shapes of a model's parameters, in ``parameters()`` order."""
+    with torch.device("meta"):
+        model = SensorimotorEncoder(config)
+    named = list(model.named_parameters())
+    return [n for n, _ in named], [p.shape for _, p in named]
+
+
 # --- the stack: weights, gradients and Adam state of K seeds -------------------------------
 
 
 class StackedEncoders:
-    """K feed-forward encoders of one kind (S or SM): weights, gradients and Adam state.
+    """K encoders of one kind: weights, gradients and Adam state.
 
-    ``params`` follows ``SensorimotorEncoder.parameters()``: for every ``nn.Linear`` its weight
-    ``(K, out, in)`` then its bias ``(K, 1, out)``. ``grads`` are preallocated alike; all
-    seeds have taken ``step`` Adam steps.
+    ``params`` follows ``SensorimotorEncoder.parameters()``, each with a leading seed axis:
+    a matrix (an ``nn.Linear`` or LSTM weight) as ``(K, out, in)``, a bias as ``(K, 1, out)``.
+    ``grads`` are preallocated alike; all seeds have taken ``step`` Adam steps. The
+    feed-forward pass below is for S and SM; ``stacked_lstm`` runs Rec-S and Rec-SM.
     """
 
     def __init__(
@@ -109,14 +118,16 @@ class StackedEncoders:
         step: float,
         lr: float = 1e-3,
     ):
-        if config.recurrent:
-            raise ValueError(f"stacked training is for s and sm, not {config.kind}")
         self.config, self.lr = config, lr
         self.params, self.exp_avg, self.exp_avg_sq = params, exp_avg, exp_avg_sq
         self.step = torch.full((), float(step), device=params[0].device)  # float32, as FusedAdam
+        self.names, self.shapes = parameter_layout(config)
+        index = {name: i for i, name in enumerate(self.names)}
         self.chains: dict[str, list[int]] = {}  # "sensor_encoder" -> its layers, in order
+        self.linear_index: list[tuple[int, int]] = []  # (weight, bias) of each nn.Linear
         for i, name in enumerate(linear_names(config)):
             self.chains.setdefault(name.split(".")[0], []).append(i)
+            self.linear_index.append((index[f"{name}.weight"], index[f"{name}.bias"]))
         self._prepare()
 
     @property
@@ -154,9 +165,10 @@ class StackedEncoders:
     def _prepare(self) -> None:
         """Gradient buffers, the weight views of each product, and Adam's tensor lists."""
         self.grads = [torch.empty_like(p) for p in self.params]
-        # per layer: weight (K, out, in), its transpose (K, in, out) (a view), bias (K, 1, out)
-        ws, bs = self.params[0::2], self.params[1::2]
-        self.layers = [(w, w.mT, b) for w, b in zip(ws, bs, strict=True)]
+        # per nn.Linear: weight (K, out, in), its transpose (K, in, out) (a view), bias (K, 1, out)
+        self.layers = [
+            (self.params[w], self.params[w].mT, self.params[b]) for w, b in self.linear_index
+        ]
         self._adam = [self._adam_lists(t) for t in (self.params, self.grads)]
         self._adam += [self._adam_lists(t) for t in (self.exp_avg, self.exp_avg_sq)]
 
@@ -219,15 +231,8 @@ class StackedEncoders:
         )
 
     def _per_seed(self, tensors: list[torch.Tensor], k: int) -> list[torch.Tensor]:
-        """Copies of seed ``k``'s slice of stacked tensors, shaped as ``nn.Linear``'s weight
-        (out, in) and bias (out,)."""
-        out = []
-        for i, t in enumerate(tensors):
-            if i % 2:  # bias (K, 1, out)
-                out.append(t[k, 0].clone())
-            else:  # weight (K, out, in)
-                out.append(t[k].clone())
-        return out
+        """Copies of seed ``k``'s slice of stacked tensors, shaped as the model's parameters."""
+        return [t[k].reshape(shape).clone() for t, shape in zip(tensors, self.shapes, strict=True)]
 
     def load_into(self, k: int, model: SensorimotorEncoder) -> SensorimotorEncoder:
         """Copy seed ``k``'s weights into ``model`` (same kind); returns it."""
@@ -265,8 +270,9 @@ class StackedEncoders:
             i = layers[j]
             w = plan[i][0]  # (K, out, in)
             h = hs[j]  # (K, B, in): input of layer i
-            torch.bmm(dy.mT, h, out=grads[2 * i])  # (K, out, in) = dy^T h
-            torch.sum(dy, 1, keepdim=True, out=grads[2 * i + 1])  # (K, 1, out)
+            wi, bi = self.linear_index[i]
+            torch.bmm(dy.mT, h, out=grads[wi])  # (K, out, in) = dy^T h
+            torch.sum(dy, 1, keepdim=True, out=grads[bi])  # (K, 1, out)
             if j:
                 dy = RELU_GRAD(torch.bmm(dy, w), h, 0)  # (K, B, in); h is a ReLU output
             elif input_grad:
@@ -392,7 +398,7 @@ def train_runs(
     resume: bool = False,
     on_epoch: OnEpoch | None = None,
 ) -> list[TrainResult]:
-    """Train S or SM once per ``(seed, run folder)`` in ``runs``, all seeds in one stack.
+    """Train one model per ``(seed, run folder)`` in ``runs``, all seeds in one stack.
 
     Every run folder is what ``train.train(data, out, replace(config, seed=seed))`` writes;
     ``config.seed`` is not used. With ``resume``, each run continues from its checkpoint;
@@ -403,8 +409,10 @@ def train_runs(
     device = resolve_device(config.device)
     config = replace(config, device=device)
     model_config = ModelConfig(kind=config.model)
-    if model_config.recurrent:
-        raise ValueError(f"stacked training is for s and sm, not {config.model}")
+    if model_config.recurrent and device != "cpu":
+        raise ValueError(
+            "the stacked LSTM is CPU only: train recurrent models on CUDA with train.train"
+        )
     seeds = check_seeds([seed for seed, _ in runs])
     outs = [Path(out) for _, out in runs]
     if len(set(outs)) != len(outs):
@@ -459,9 +467,15 @@ def train_runs(
         members, net = min(stacks, key=lambda st: st[0][0].epoch)  # the lagging stack first
         epoch = members[0].epoch
         t0 = time.perf_counter()
-        train_errors = train_epoch_stacked(
-            net, s, m, [r.seed for r in members], epoch, config.batch_size
-        ).tolist()
+        if model_config.recurrent:
+            from sensorimotor.stacked_lstm import train_epoch_stacked_recurrent
+
+            errors = train_epoch_stacked_recurrent(net, s, m, config.batch_size, config.horizon)
+        else:
+            errors = train_epoch_stacked(
+                net, s, m, [r.seed for r in members], epoch, config.batch_size
+            )
+        train_errors = errors.tolist()
         seconds = time.perf_counter() - t0
         for k, run in enumerate(members):
             t1 = time.perf_counter()
@@ -527,8 +541,8 @@ def train_seeds(
 ) -> list[TrainResult]:
     """Train one model per seed into ``out/{world}__{model}__s{seed}`` run folders.
 
-    S and SM: all seeds at once in one stack (``train_runs``). Recurrent models: one seed
-    after another (``train.train``), into the same folders.
+    All seeds at once in one stack (``train_runs``); recurrent models on CUDA, where
+    ``nn.LSTM`` runs cuDNN, one seed after another (``train.train``), into the same folders.
     """
     seeds = check_seeds(seeds)
     out = Path(out)
@@ -536,7 +550,7 @@ def train_seeds(
         raise InputError(f"{out}: exists and is not a folder")
     world = load_database(data).meta["world"]["name"]
     runs = [(seed, out / run_name(world, config.model, seed)) for seed in seeds]
-    if not ModelConfig(kind=config.model).recurrent:
+    if not ModelConfig(kind=config.model).recurrent or resolve_device(config.device) == "cpu":
         return train_runs(data, runs, config, resume, on_epoch)
     results = []
     for seed, run_dir in runs:

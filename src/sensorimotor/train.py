@@ -228,17 +228,20 @@ def train(
 ) -> TrainResult:
     """Train one model on ``data`` into run folder ``out``; resumable after every epoch.
 
-    S and SM go through ``stacked.train_runs`` (a stack of one, hand-written backward pass):
-    the same numbers, bit for bit, as ``train_epoch_feedforward`` with autograd, faster.
+    On the CPU every model goes through ``stacked.train_runs`` (a stack of one, hand-written
+    backward pass): S and SM give the same numbers, bit for bit, as
+    ``train_epoch_feedforward`` with autograd; Rec-S and Rec-SM those of
+    ``train_epoch_recurrent`` (``nn.LSTM``) to float32 rounding (``stacked_lstm``). The loop
+    below trains the recurrent models on CUDA.
     """
-    if config.model in ("s", "sm"):
+    device = resolve_device(config.device)
+    if config.model in ("s", "sm") or device == "cpu":
         from sensorimotor.stacked import train_runs
 
         callback = None if on_epoch is None else (lambda _seed, r, st: on_epoch(r, st))
         return train_runs(data, [(config.seed, out)], config, resume, callback)[0]
     out = Path(out)
     data = Path(data)
-    device = resolve_device(config.device)
     config = TrainConfig(**{**asdict(config), "device": device})
     db = load_database(data)
     check_trainable(db, config)
@@ -266,7 +269,7 @@ def train(
     epoch = start_epoch
     while (stopped := stop_reason(config, stopper, epoch, elapsed)) is None:
         t0 = time.perf_counter()
-        model.train()  # recurrent models only: S and SM returned above
+        model.train()  # recurrent models on CUDA only: the others returned above
         train_error = train_epoch_recurrent(model, opt, s, m, config.batch_size, config.horizon)
         seconds = time.perf_counter() - t0
         val_error = model_error(model, vs, vm)

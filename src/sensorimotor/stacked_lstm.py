@@ -1,0 +1,286 @@
+"""Several seeds of a recurrent encoder (Rec-S, Rec-SM) trained at once, the LSTM by hand.
+
+PyTorch's CPU LSTM spends most of a truncated-BPTT step (64 streams x 20 steps, 3 x 32
+units) on per-element work: its backward pass runs at a third of the speed of its forward.
+Here K seeds run as tensors with a leading seed axis; all of them see the same batches (the
+recurrent protocol does not shuffle), every product goes to the BLAS through ``baddbmm`` or
+``bmm``, and the per-element work of one time step, gates, cell and their derivatives, runs
+for every seed in one numba kernel. Shapes are time-major, (K, T, B, .), H = 32 units:
+
+    forward   a_t = b + x_t W_ih^T + h_{t-1} W_hh^T           (K, B, 4H): gates i, f, g, o
+              i, f, o = sigma(.)   g = tanh(.)   c_t = f c_{t-1} + i g   h_t = o tanh(c_t)
+    backward  dc += dh_t o (1 - tanh(c_t)^2)
+              da_t = [dc g i(1-i), dc c_{t-1} f(1-f), dc i (1-g^2), dh_t tanh(c_t) o(1-o)]
+              dc <- dc f        dh_{t-1} += da_t W_hh
+              dW_ih = da^T x    dW_hh = da^T h_{t-1}    db = sum da    dx = da W_ih   (chunk)
+
+numba has no vector ``exp``, so tanh is a rational function x P(x^2) / Q(x^2) fitted for this
+file (max error 3e-7 in float32, a few units in the last place) and sigma(x) = (1 + tanh(x/2))
+/ 2. A seed's numbers therefore agree with ``nn.LSTM`` to float32 rounding, not bit for bit;
+tests check gradients against autograd through ``models.SensorimotorEncoder``, and that a
+seed trains the same in a stack of K as alone. The trained weights are the model's own
+(``nn.LSTM``'s layout, gate order i, f, g, o): evaluation and analysis run ``models.py``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+import torch
+
+from sensorimotor.stacked import RELU_GRAD, StackedEncoders
+from sensorimotor.train import stream_layout
+
+# tanh(x) ~ x P(x^2) / Q(x^2) on |x| <= TANH_CLAMP (beyond it float32 tanh is +-1); relative
+# minimax fit by iterated weighted least squares against float64 tanh.
+TANH_CLAMP = np.float32(7.905311107635498)
+P0, P1, P2, P3, P4, P5, P6 = (np.float32(c) for c in (
+    0.9999999995928991, 0.13135372061943626, 0.003161826823380048, 1.1778680104245297e-05,
+    -2.2918834628224284e-08, 6.69754066696719e-11, -1.2570312331139817e-13,
+))  # fmt: skip
+Q1, Q2, Q3 = (
+    np.float32(c) for c in (0.4646870456187213, 0.02472419237118064, 0.0002631431913681189)
+)
+ONE, HALF = np.float32(1.0), np.float32(0.5)
+_FAST = {
+    "fastmath": True,
+    "error_model": "numpy",
+}  # error_model: no division check, so loops vectorise
+
+
+@numba.njit(inline="always", **_FAST)
+def tanh32(x):
+    x = x if x < TANH_CLAMP else TANH_CLAMP
+    x = x if x > -TANH_CLAMP else -TANH_CLAMP
+    u = x * x
+    p = (((((P6 * u + P5) * u + P4) * u + P3) * u + P2) * u + P1) * u + P0
+    q = ((Q3 * u + Q2) * u + Q1) * u + ONE
+    return x * p / q
+
+
+@numba.njit(inline="always", **_FAST)
+def sigmoid32(x):
+    return HALF + HALF * tanh32(HALF * x)
+
+
+@numba.njit(cache=True, **_FAST)
+def tanh_array(x: np.ndarray) -> np.ndarray:
+    """``tanh32`` of every element (for tests and for checking the fit)."""
+    out = np.empty_like(x)
+    flat, res = x.ravel(), out.ravel()
+    for i in range(flat.size):
+        res[i] = tanh32(flat[i])
+    return out
+
+
+@numba.njit(cache=True, **_FAST)
+def cell_forward(act, hs, cs, tc, t):
+    """Step t of every seed: act[:, t] (K, B, 4H) pre-activations -> gates, in place; writes
+    c_t to cs[:, t + 1], tanh(c_t) to tc[:, t] and h_t to hs[:, t + 1]."""
+    K, _, B, G = act.shape
+    H = G // 4
+    for k in range(K):
+        for b in range(B):
+            a = act[k, t, b]
+            for u in range(2 * H):
+                a[u] = sigmoid32(a[u])
+            for u in range(2 * H, 3 * H):
+                a[u] = tanh32(a[u])
+            for u in range(3 * H, G):
+                a[u] = sigmoid32(a[u])
+            c_prev, c_new = cs[k, t, b], cs[k, t + 1, b]
+            tanh_c, h_new = tc[k, t, b], hs[k, t + 1, b]
+            for u in range(H):
+                c = a[H + u] * c_prev[u] + a[u] * a[2 * H + u]
+                c_new[u] = c
+                th = tanh32(c)
+                tanh_c[u] = th
+                h_new[u] = a[3 * H + u] * th
+
+
+@numba.njit(cache=True, **_FAST)
+def cell_backward(dh, act, cs, tc, dc, da, t):
+    """Step t backwards: from dh[:, t] (K, B, H) and dc (K, B, H) = dL/dc_t, write da[:, t]
+    (K, B, 4H) = dL/d(pre-activations) and turn dc into dL/dc_{t-1}."""
+    K, _, B, G = act.shape
+    H = G // 4
+    for k in range(K):
+        for b in range(B):
+            a, d = act[k, t, b], da[k, t, b]
+            dh_t, th, c_prev, dc_kb = dh[k, t, b], tc[k, t, b], cs[k, t, b], dc[k, b]
+            for u in range(H):
+                i, f, g, o = a[u], a[H + u], a[2 * H + u], a[3 * H + u]
+                dcu = dc_kb[u] + dh_t[u] * o * (ONE - th[u] * th[u])
+                d[u] = dcu * g * i * (ONE - i)
+                d[H + u] = dcu * c_prev[u] * f * (ONE - f)
+                d[2 * H + u] = dcu * i * (ONE - g * g)
+                d[3 * H + u] = dh_t[u] * th[u] * o * (ONE - o)
+                dc_kb[u] = dcu * f
+
+
+# --- a chunk of T steps through the whole encoder ------------------------------------------
+
+
+@dataclass
+class _LayerBuffers:
+    """One LSTM layer's tensors for a chunk of T steps, reused from chunk to chunk."""
+
+    act: torch.Tensor  # (K, T, B, 4H) pre-activations, then gates
+    hs: torch.Tensor  # (K, T + 1, B, H): h_{-1} (the carried state), h_0 .. h_{T-1}
+    cs: torch.Tensor  # (K, T + 1, B, H): c alike
+    tc: torch.Tensor  # (K, T, B, H): tanh(c_t)
+    arrays: tuple  # numpy views of act, hs, cs, tc for the kernels
+
+
+def _buffers(net: StackedEncoders, t: int, b: int) -> list[_LayerBuffers]:
+    cache = net.__dict__.setdefault("_lstm_buffers", {})
+    key = (net.k, t, b)
+    if key not in cache:
+        c = net.config
+        h = c.lstm_size
+        layers = []
+        for _ in range(c.lstm_layers):
+            act = torch.empty(net.k, t, b, 4 * h)
+            hs, cs = torch.empty(net.k, t + 1, b, h), torch.empty(net.k, t + 1, b, h)
+            tc = torch.empty(net.k, t, b, h)
+            arrays = tuple(x.numpy() for x in (act, hs, cs, tc))
+            layers.append(_LayerBuffers(act, hs, cs, tc, arrays))
+        cache.clear()  # at most two chunk lengths an epoch: keep only the current one
+        cache[key] = layers
+    return cache[key]
+
+
+def _lstm_params(net: StackedEncoders, layer: int) -> tuple[int, int, int, int]:
+    """Indices in ``net.params`` of one layer's W_ih, W_hh, b_ih, b_hh."""
+    index = {name: i for i, name in enumerate(net.names)}
+    return tuple(
+        index[f"lstm.{p}_l{layer}"] for p in ("weight_ih", "weight_hh", "bias_ih", "bias_hh")
+    )
+
+
+State = list[tuple[torch.Tensor, torch.Tensor]] | None  # per layer (h, c), each (K, B, H)
+
+
+def forward_backward(
+    net: StackedEncoders,
+    xs: torch.Tensor,
+    xm: torch.Tensor | None,
+    y: torch.Tensor,
+    weight: torch.Tensor | None,
+    state: State,
+    sq_sum: torch.Tensor,
+) -> State:
+    """One chunk of every seed: the loss gradient into ``net.grads``, each seed's weighted
+    squared error added to ``sq_sum`` (K,); returns the state after the chunk (detached).
+
+    xs (T, B, 5) sensors, xm (T, B, 2) motors (None for Rec-S), y (T, B, 5) next sensors, all
+    shared by the seeds; weight (T, B) 0/1 for padded stream ends, or None. The loss is the
+    paper's error averaged over the chunk's (weighted) steps, as ``train.train_epoch_recurrent``.
+    """
+    c = net.config
+    K, plan, grads = net.k, net.layers, net.grads
+    T, B, _ = xs.shape
+    n = T * B
+    bufs = _buffers(net, T, B)
+
+    # sensor_in: (K, TB, 5) -> relu -> (K, TB, 16)
+    x_in = xs.reshape(1, n, -1).expand(K, n, -1)
+    (i_in,) = net.chains["sensor_in"]
+    _, w_t, b = plan[i_in]
+    x = torch.baddbmm(b, x_in, w_t).relu_()  # (K, TB, 16)
+    inputs = [x]  # input of every LSTM layer, (K, TB, in)
+    for layer, buf in enumerate(bufs):
+        wih, whh, bih, bhh = (net.params[i] for i in _lstm_params(net, layer))
+        act = buf.act.view(K, n, -1)
+        torch.baddbmm(bih + bhh, inputs[-1], wih.mT, out=act)
+        if state is None:
+            buf.hs[:, 0].zero_()
+            buf.cs[:, 0].zero_()
+        else:
+            buf.hs[:, 0].copy_(state[layer][0])
+            buf.cs[:, 0].copy_(state[layer][1])
+        whh_t = whh.mT
+        for t in range(T):
+            buf.act[:, t].baddbmm_(buf.hs[:, t], whh_t)
+            cell_forward(*buf.arrays, t)
+        inputs.append(buf.hs[:, 1:].reshape(K, n, -1))  # (K, TB, H), a view
+    (i_out,) = net.chains["sensor_out"]
+    z = torch.baddbmm(plan[i_out][2], inputs[-1], plan[i_out][1])  # z_s (K, TB, 10)
+    if c.uses_motors:
+        hm = net._forward(plan, "motor_encoder", xm.reshape(1, n, -1).expand(K, n, -1))
+        z = torch.cat([z, hm[-1]], dim=-1)  # (K, TB, 15)
+    hp = net._forward(plan, "predictor", z)  # [(K, TB, 15), (K, TB, 128), pred (K, TB, 5)]
+    diff = hp[-1].sub_(y.reshape(1, n, -1))  # (K, TB, 5)
+    err = diff.square().sum(-1)  # (K, TB)
+    if weight is None:
+        sq_sum += err.sum(-1)
+        dy = diff.mul_(2.0 / n)
+    else:
+        wv = weight.reshape(1, n)
+        sq_sum += (err * wv).sum(-1)
+        dy = diff.mul_((2.0 / wv.sum()) * wv[..., None])
+
+    dz = net._backward(plan, grads, "predictor", hp, dy, input_grad=True)  # (K, TB, 10|15)
+    if c.uses_motors:
+        net._backward(plan, grads, "motor_encoder", hm, dz[..., c.z_sensors :])
+        dz = dz[..., : c.z_sensors]
+    wi, bi = net.linear_index[i_out]
+    torch.bmm(dz.mT, inputs[-1], out=grads[wi])  # (K, 10, H)
+    torch.sum(dz, 1, keepdim=True, out=grads[bi])
+    dh = torch.bmm(dz, plan[i_out][0])  # (K, TB, H)
+    for layer in range(len(bufs) - 1, -1, -1):
+        buf = bufs[layer]
+        iwih, iwhh, ibih, ibhh = _lstm_params(net, layer)
+        wih, whh = net.params[iwih], net.params[iwhh]
+        dh4 = dh.view(K, T, B, -1)  # dL/dh_t from above, then also from the future
+        da = torch.empty_like(buf.act)
+        dc = torch.zeros(K, B, c.lstm_size)
+        act_a, _, cs_a, tc_a = buf.arrays
+        dh_a, dc_a, da_a = dh4.numpy(), dc.numpy(), da.numpy()
+        for t in range(T - 1, -1, -1):
+            cell_backward(dh_a, act_a, cs_a, tc_a, dc_a, da_a, t)
+            if t:
+                dh4[:, t - 1].baddbmm_(da[:, t], whh)
+        da2 = da.view(K, n, -1)  # (K, TB, 4H)
+        torch.bmm(da2.mT, inputs[layer], out=grads[iwih])
+        torch.bmm(da2.mT, buf.hs[:, :T].reshape(K, n, -1), out=grads[iwhh])
+        torch.sum(da2, 1, keepdim=True, out=grads[ibih])
+        grads[ibhh].copy_(grads[ibih])
+        dh = torch.bmm(da2, wih)  # (K, TB, in): dL/d(layer input)
+    dpre = RELU_GRAD(dh, inputs[0], 0)  # through sensor_in's ReLU
+    wi, bi = net.linear_index[i_in]
+    torch.bmm(dpre.mT, x_in, out=grads[wi])
+    torch.sum(dpre, 1, keepdim=True, out=grads[bi])
+    return [(buf.hs[:, T].clone(), buf.cs[:, T].clone()) for buf in bufs]
+
+
+def train_epoch_stacked_recurrent(
+    net: StackedEncoders, s: torch.Tensor, m: torch.Tensor, streams: int, horizon: int
+) -> torch.Tensor:
+    """One epoch of truncated BPTT for every seed of ``net``, as ``train.train_epoch_recurrent``
+    runs it for one: ``streams`` contiguous streams, chunks of ``horizon`` steps, the state
+    carried (detached) and reset each epoch. Returns each seed's mean training error (K,)."""
+    n = len(s) - 1
+    index, mask = stream_layout(n, streams)
+    index = index.T.contiguous().to(s.device)  # (L, streams), time-major
+    xs, y = s[:-1][index], s[1:][index]  # (L, streams, 5)
+    xm = m[:-1][index] if net.config.uses_motors else None  # (L, streams, 2)
+    w = None if bool(mask.all()) else mask.T.float().to(s.device)  # (L, streams)
+    sq_sum = torch.zeros(net.k, device=s.device)
+    state = None
+    with torch.no_grad():
+        for j in range(0, index.shape[0], horizon):
+            chunk = slice(j, j + horizon)
+            state = forward_backward(
+                net,
+                xs[chunk],
+                None if xm is None else xm[chunk],
+                y[chunk],
+                None if w is None else w[chunk],
+                state,
+                sq_sum,
+            )
+            net.adam_step()
+    return sq_sum / n
