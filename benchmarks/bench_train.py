@@ -2,10 +2,11 @@
 
 For S and SM: the plain eager loop (``train.train_epoch_feedforward``: nn.Module, autograd,
 ``train.FusedAdam``) beside the stacked path (``stacked.train_epoch_stacked``) with K = 1, 5
-and 10 seeds at once. For Rec-S and Rec-SM: the plain loop (``train.train_epoch_recurrent``)
-in one worker process, and two training independent seeds at the same time, each with glibc's
-default allocator and with ``train.keep_freed_memory`` (as training runs). Every ratio is to
-the plain loop (glibc default, for the recurrent models) measured in the same run; the time of one epoch over an
+and 10 seeds at once. For Rec-S and Rec-SM, in worker processes of one thread: the plain loop
+(``train.train_epoch_recurrent``, nn.LSTM) with glibc's default allocator and with
+``train.keep_freed_memory`` (as training runs), the stacked LSTM (``stacked_lstm``) with K = 1
+and 5 seeds, and two processes at once (as ``reproduce`` runs them). Every ratio is to the plain
+loop measured in the same run (for the recurrent models, with glibc's default allocator); the time of one epoch over an
 800,000-step train split (a 1 M-step database) is extrapolated from the samples/s.
 
 The data are a generated Square database. Each measurement is the best of a few repeats of a
@@ -29,6 +30,7 @@ from sensorimotor import __version__
 from sensorimotor.data import generate, scale_motors, scale_sensors
 from sensorimotor.models import build_model
 from sensorimotor.stacked import StackedEncoders, train_epoch_stacked
+from sensorimotor.stacked_lstm import train_epoch_stacked_recurrent
 from sensorimotor.train import (
     FusedAdam,
     epoch_generator,
@@ -79,32 +81,44 @@ def bench_stacked(kind, k, s, m, warm, repeats):
     return timed(lambda i: train_epoch_stacked(net, s, m, seeds, i, BATCH), repeats)
 
 
-def _rec_worker(kind, seed, n, warm_n, keep, barrier, results):
-    """One of the parallel processes: one thread, its own seed, timed from a common start."""
+def _rec_worker(kind, k, n, warm_n, keep, barrier, results):
+    """One of the parallel processes, one thread: ``k`` = 0 the plain loop (nn.LSTM), else a
+    stack of ``k`` seeds (``stacked_lstm``); timed from a start common to all processes."""
     torch.set_num_threads(1)
     if keep:
         keep_freed_memory()
     s, m = train_split(n)
     warm = (s[: warm_n + 1], m[: warm_n + 1])
-    model = build_model(kind, seed=seed)
-    opt = FusedAdam(model.parameters())
-    train_epoch_recurrent(model, opt, *warm, BATCH, HORIZON)
+    if k == 0:
+        model = build_model(kind, seed=0)
+        opt = FusedAdam(model.parameters())
+
+        def epoch(s, m):
+            train_epoch_recurrent(model, opt, s, m, BATCH, HORIZON)
+    else:
+        net = StackedEncoders.from_models([build_model(kind, seed=sd) for sd in range(k)])
+
+        def epoch(s, m):
+            train_epoch_stacked_recurrent(net, s, m, BATCH, HORIZON)
+
+    epoch(*warm)
     barrier.wait()
     t0, c0 = time.perf_counter(), time.process_time()
-    train_epoch_recurrent(model, opt, s, m, BATCH, HORIZON)
-    results.put((n, time.perf_counter() - t0, time.process_time() - c0))
+    epoch(s, m)
+    results.put((n * max(k, 1), time.perf_counter() - t0, time.process_time() - c0))
 
 
-def bench_rec_workers(kind, n, warm_n, workers: int, repeats: int, keep: bool = True):
-    """Total samples/s (wall, cpu) of ``workers`` spawned processes training seeds 0, 1, ...
-    at once; ``keep``: with ``train.keep_freed_memory`` as training runs, else glibc's default."""
+def bench_rec(kind, k, n, warm_n, workers: int, repeats: int, keep: bool = True):
+    """Total samples/s (wall, cpu) of ``workers`` spawned processes training at once, each a
+    stack of ``k`` seeds (0: the plain loop); ``keep``: with ``train.keep_freed_memory``, as
+    training runs, else glibc's default allocator."""
     ctx = mp.get_context("spawn")
     best, best_cpu = 0.0, 0.0
     for _ in range(repeats):
         barrier, results = ctx.Barrier(workers), ctx.Queue()
         procs = [
-            ctx.Process(target=_rec_worker, args=(kind, w, n, warm_n, keep, barrier, results))
-            for w in range(workers)
+            ctx.Process(target=_rec_worker, args=(kind, k, n, warm_n, keep, barrier, results))
+            for _ in range(workers)
         ]
         for p in procs:
             p.start()
@@ -191,17 +205,22 @@ def main() -> None:
     rec_n = max(batches, 200) * BATCH  # at least 10 chunks of 20 steps in every stream
     warm_n = 2 * HORIZON * BATCH
     for kind in ("rec-s", "rec-sm"):
-        total, cpu = bench_rec_workers(kind, rec_n, warm_n, 1, repeats, keep=False)
-        plain = total
-        row(kind, "plain loop, 1 process, glibc default", plain, plain, cpu, plain)
-        total, cpu = bench_rec_workers(kind, rec_n, warm_n, 1, repeats)
-        row(kind, "plain loop, 1 process", total, total, cpu, plain)
-        total, cpu = bench_rec_workers(kind, rec_n, warm_n, 2, repeats, keep=False)
-        row(kind, "2 processes, glibc default", total / 2, total, cpu, plain)
-        total, cpu = bench_rec_workers(kind, rec_n, warm_n, 2, repeats)
+        plain, cpu = bench_rec(kind, 0, rec_n, warm_n, 1, repeats, keep=False)
+        row(kind, "plain loop (nn.LSTM), glibc default", plain, plain, cpu, plain)
+        total, cpu = bench_rec(kind, 0, rec_n, warm_n, 1, repeats)
+        row(kind, "plain loop (nn.LSTM)", total, total, cpu, plain)
+        one = None
+        for k in (1, 5):
+            total, cpu = bench_rec(kind, k, rec_n, warm_n, 1, repeats)
+            one = one or total
+            target = "" if k == 1 else f"{total / one:.2f}x one"
+            row(kind, f"stacked LSTM, K = {k}", total / k, total, cpu, plain, target)
+        total, cpu = bench_rec(kind, 0, rec_n, warm_n, 2, repeats)
+        row(kind, "2 processes, plain loop", total / 2, total, cpu, plain)
+        total, cpu = bench_rec(kind, 5, rec_n, warm_n, 2, repeats)
         met = "met" if total >= TARGETS[kind] else "NOT met"
         target = f">= {TARGETS[kind] / 1e3:.0f} k: {met}"
-        row(kind, "2 processes x 1 thread", total / 2, total, cpu, plain, target)
+        row(kind, "2 processes, stacked K = 5", total / 10, total, cpu, plain, target)
         console.print(f"  {kind} done ({load()})")
 
     console.print(table)

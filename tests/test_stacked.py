@@ -1,6 +1,6 @@
-"""Stacked training of S and SM: K seeds at once give, bit for bit, what each seed gives alone
+"""Stacked training: K seeds of S and SM at once give, bit for bit, what each seed gives alone
 with the reference loop of train.py (nn.Module, autograd, FusedAdam), down to early stopping,
-run folders and resume."""
+run folders and resume. The recurrent models' own LSTM is tested in test_stacked_lstm.py."""
 
 from __future__ import annotations
 
@@ -320,10 +320,15 @@ def test_cli_refuses_bad_seeds(seeds, needle, square_db_path, tmp_path, cli):
     assert not out.exists()
 
 
-def test_cli_seeds_of_a_recurrent_model_train_one_after_another(square_db_path, tmp_path, cli):
+def test_cli_seeds_of_a_recurrent_model_train_in_one_stack(square_db_path, tmp_path, cli):
     out = tmp_path / "runs"
     args = ["train", "rec-s", "--seeds", "2,5", "--data", square_db_path, "--out", out]
     proc = cli(*args, "--max-epochs", "1")
     assert proc.returncode == 0, proc.stderr
     assert sorted(p.name for p in out.iterdir()) == ["square__rec-s__s2", "square__rec-s__s5"]
     assert load_run(out / "square__rec-s__s5").config["train"]["seed"] == 5
+    alone = TrainConfig(model="rec-s", seed=5, max_epochs=1)
+    train(square_db_path, tmp_path / "alone", alone)
+    a = torch.load(out / "square__rec-s__s5" / "model.pt", weights_only=True)
+    b = torch.load(tmp_path / "alone" / "model.pt", weights_only=True)
+    assert _equal(a, b)
