@@ -1,4 +1,4 @@
-"""Shared fixtures: small real databases, and the real command line in a subprocess."""
+"""Shared fixtures: small real databases, the real command line in a subprocess, one thread."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 import pytest
+import torch
 
 from sensorimotor.data import generate, save_database
 from sensorimotor.world import load_world
@@ -52,3 +53,12 @@ def rooms1_db_path(tmp_path_factory) -> Path:
     path = tmp_path_factory.mktemp("data") / "rooms1.npz"
     save_database(generate(load_world("rooms1"), 20_000, seed=1), path)
     return path
+
+
+@pytest.fixture
+def one_thread():
+    """Training runs on one thread (TrainConfig.threads); so do the references here."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)

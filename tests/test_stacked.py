@@ -24,14 +24,7 @@ from sensorimotor.train import (
     train_epoch_feedforward,
 )
 
-
-@pytest.fixture(autouse=True)
-def one_thread():
-    """Training runs on one thread (TrainConfig.threads); so do the references here."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
+pytestmark = pytest.mark.usefixtures("one_thread")
 
 
 def _equal(a: dict, b: dict) -> bool:

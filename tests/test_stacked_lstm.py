@@ -13,13 +13,7 @@ from sensorimotor.stacked import StackedEncoders, run_name, train_seeds
 from sensorimotor.stacked_lstm import forward_backward, tanh_array, train_epoch_stacked_recurrent
 from sensorimotor.train import FusedAdam, TrainConfig, train, train_epoch_recurrent
 
-
-@pytest.fixture(autouse=True)
-def one_thread():
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
+pytestmark = pytest.mark.usefixtures("one_thread")
 
 
 def test_tanh32_is_tanh_to_float32_rounding():
@@ -30,6 +24,7 @@ def test_tanh32_is_tanh_to_float32_rounding():
     assert np.abs(mine - ref).max() < 5e-7
     assert np.abs(mine).max() <= 1.0
     assert np.array_equal(tanh_array(-x), -tanh_array(x))
+    assert np.isnan(tanh_array(np.array([np.nan], dtype=np.float32))[0])  # as nn.LSTM: it spreads
 
 
 def _stacked_state(per_seed):
@@ -80,7 +75,7 @@ def test_stacked_epochs_follow_the_lstm_loop_and_do_not_depend_on_the_stack(kind
     g = torch.Generator().manual_seed(1)
     n = 64 * 20 * 4 + 37  # streams of unequal length: the last chunk is padded
     s, m = torch.rand(n + 1, 5, generator=g), torch.rand(n + 1, 2, generator=g)
-    seeds = [5, 2, 7]
+    seeds = [5, 2, 7, 0, 9]
 
     def stacked(order):
         net = StackedEncoders.from_models([build_model(kind, seed=sd) for sd in order])
@@ -94,8 +89,12 @@ def test_stacked_epochs_follow_the_lstm_loop_and_do_not_depend_on_the_stack(kind
         plain = [train_epoch_recurrent(model, opt, s, m, 64, 20) for _ in range(3)]
         assert float(net.step) == float(opt.steps[0]) == 3 * 5  # 3 epochs of 4 + 1 chunks
         mine = net.load_into(k, build_model(kind))
-        for (name, a), b in zip(model.named_parameters(), mine.parameters(), strict=True):
-            assert torch.allclose(a, b, atol=2e-5), name  # float32 rounding, after 15 steps
+        gap = torch.cat([(a - b).abs().flatten() for a, b in zip(
+            model.parameters(), mine.parameters(), strict=True)]).detach()  # fmt: skip
+        # float32 rounding after 15 Adam steps: tiny for nearly every weight; Adam can turn it
+        # into up to lr a step for a weight whose gradient is nearly zero
+        assert gap.quantile(0.99) < 1e-5
+        assert gap.max() < 15 * 1e-3
         assert torch.allclose(errors[:, k].double(), torch.tensor(plain).double(), rtol=1e-4)
     for k, sd in enumerate(seeds):  # each seed alone: the same numbers as in the stack
         net1, _ = stacked([sd])

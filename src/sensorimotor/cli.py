@@ -113,7 +113,7 @@ def train(
     seeds: Annotated[
         str | None,
         typer.Option(
-            help="Train several seeds, e.g. 0,1,2,3,4 (s, sm: at once, stacked; rec-s, rec-sm: "
+            help="Train several seeds at once, stacked, e.g. 0,1,2,3,4 (rec-s, rec-sm on CUDA: "
             "one after another). --out is then a parent folder of {world}__{model}__s{seed} "
             "run folders."
         ),
@@ -185,13 +185,15 @@ def _train_seeds(model: str, data: Path, out: Path, config, seeds: list[int], re
     """`train --seeds`: one run folder per seed under OUT, a line per seed and epoch."""
     from sensorimotor.models import MODEL_NAMES
     from sensorimotor.stacked import train_seeds
+    from sensorimotor.train import resolve_device
 
     started: list[bool] = []
 
     def on_epoch(seed, r, stopper) -> None:
         if not started:  # the header waits for the first epoch: input errors stay one line
             started.append(True)
-            how = "stacked" if model in ("s", "sm") else "one after another"
+            stacked = model in ("s", "sm") or resolve_device(config.device) == "cpu"
+            how = "stacked" if stacked else "one after another"
             err_console.print(
                 f"training {MODEL_NAMES[model]} on {data}, seeds {','.join(map(str, seeds))} "
                 f"({how}) -> {out}"

@@ -1,6 +1,10 @@
-"""Several seeds of a feed-forward encoder (S, SM) trained at once, through stacked weights.
+"""Several seeds of an encoder trained at once, through stacked weights, into run folders.
 
-A training step of these encoders is bound by per-operation overhead, not by arithmetic: a
+The stack (weights, gradients, Adam state of K seeds) and the run-folder loop (``train_runs``:
+per-seed early stopping, checkpoints, resume) serve all four models; the feed-forward pass is
+here, the recurrent one in ``stacked_lstm``.
+
+A training step of S and SM is bound by per-operation overhead, not by arithmetic: a
 tiny torch call costs a few microseconds on a CPU and autograd adds its own bookkeeping per
 node. Here K seeds train as one network whose tensors carry a leading seed axis; each layer is
 one ``baddbmm`` over all seeds and the backward pass is written out by hand (no autograd):
