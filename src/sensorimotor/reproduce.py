@@ -308,7 +308,8 @@ def reproduce(
         jobs.sort(key=lambda job: cost[job.name.split("__")[1]])
         rep.timings["train"] = {"jobs": n_train, "cached": len(rep.runs) - n_train}
         log(
-            f"  {n_train} trainings to run in {len(jobs)} jobs (seeds stacked), "
+            f"  {n_train} trainings to run in {len(jobs)} jobs "
+            f"({'seeds stacked' if stack_recurrent else 'S and SM seeds stacked'}), "
             f"{len(rep.runs) - n_train} cached, {workers} worker(s)"
         )
         _, failures = run_jobs(jobs, workers, progress)

@@ -126,7 +126,7 @@ class StackedEncoders:
         self.params, self.exp_avg, self.exp_avg_sq = params, exp_avg, exp_avg_sq
         self.step = torch.full((), float(step), device=params[0].device)  # float32, as FusedAdam
         self.names, self.shapes = parameter_layout(config)
-        index = {name: i for i, name in enumerate(self.names)}
+        self.index = index = {name: i for i, name in enumerate(self.names)}  # name -> position
         self.chains: dict[str, list[int]] = {}  # "sensor_encoder" -> its layers, in order
         self.linear_index: list[tuple[int, int]] = []  # (weight, bias) of each nn.Linear
         for i, name in enumerate(linear_names(config)):

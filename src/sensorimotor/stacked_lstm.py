@@ -154,9 +154,8 @@ def _buffers(net: StackedEncoders, t: int, b: int) -> list[_LayerBuffers]:
 
 def _lstm_params(net: StackedEncoders, layer: int) -> tuple[int, int, int, int]:
     """Indices in ``net.params`` of one layer's W_ih, W_hh, b_ih, b_hh."""
-    index = {name: i for i, name in enumerate(net.names)}
     return tuple(
-        index[f"lstm.{p}_l{layer}"] for p in ("weight_ih", "weight_hh", "bias_ih", "bias_hh")
+        net.index[f"lstm.{p}_l{layer}"] for p in ("weight_ih", "weight_hh", "bias_ih", "bias_hh")
     )
 
 
