@@ -184,16 +184,14 @@ def _parse_seeds(text: str) -> list[int]:
 def _train_seeds(model: str, data: Path, out: Path, config, seeds: list[int], resume: bool) -> None:
     """`train --seeds`: one run folder per seed under OUT, a line per seed and epoch."""
     from sensorimotor.models import MODEL_NAMES
-    from sensorimotor.stacked import train_seeds
-    from sensorimotor.train import resolve_device
+    from sensorimotor.stacked import train_seeds, trains_stacked
 
     started: list[bool] = []
 
     def on_epoch(seed, r, stopper) -> None:
         if not started:  # the header waits for the first epoch: input errors stay one line
             started.append(True)
-            stacked = model in ("s", "sm") or resolve_device(config.device) == "cpu"
-            how = "stacked" if stacked else "one after another"
+            how = "stacked" if trains_stacked(model, config.device) else "one after another"
             err_console.print(
                 f"training {MODEL_NAMES[model]} on {data}, seeds {','.join(map(str, seeds))} "
                 f"({how}) -> {out}"

@@ -269,8 +269,9 @@ def reproduce(
 
     # train --------------------------------------------------------------------------------
     with _stage(rep, "train", log):
+        from sensorimotor.stacked import trains_stacked
+
         jobs, n_train = [], 0
-        stack_recurrent = device == "cpu"  # the stacked LSTM is CPU only
         for world in WORLDS:
             for model in MODEL_KINDS:
                 stack = []  # seeds that need training: one stacked job
@@ -288,7 +289,7 @@ def reproduce(
                     if done and run_matches(run, data_hash[world], config):
                         continue
                     n_train += 1
-                    if model in ("s", "sm") or stack_recurrent:
+                    if trains_stacked(model, device):
                         stack.append((seed, str(run)))
                         continue
                     args = (str(rep.data[world]), str(run), config, data_hash[world])
@@ -309,7 +310,7 @@ def reproduce(
         rep.timings["train"] = {"jobs": n_train, "cached": len(rep.runs) - n_train}
         log(
             f"  {n_train} trainings to run in {len(jobs)} jobs "
-            f"({'seeds stacked' if stack_recurrent else 'S and SM seeds stacked'}), "
+            f"({'seeds' if trains_stacked('rec-sm', device) else 'S and SM seeds'} stacked), "
             f"{len(rep.runs) - n_train} cached, {workers} worker(s)"
         )
         _, failures = run_jobs(jobs, workers, progress)

@@ -86,19 +86,20 @@ def check_seeds(seeds: Sequence[int]) -> list[int]:
     return seeds
 
 
-def linear_names(config: ModelConfig) -> list[str]:
-    """Names of a model's ``nn.Linear`` modules, in ``parameters()`` order."""
-    with torch.device("meta"):
-        model = SensorimotorEncoder(config)
-    return [n for n, mod in model.named_modules() if isinstance(mod, torch.nn.Linear)]
+def trains_stacked(model: str, device: str) -> bool:
+    """Whether ``train_runs`` trains ``model`` on ``device`` ("auto", "cpu", "cuda"): every
+    model but the recurrent ones on CUDA (the stacked LSTM's kernels are CPU code)."""
+    return not ModelConfig(kind=model).recurrent or resolve_device(device) == "cpu"
 
 
-def parameter_layout(config: ModelConfig) -> tuple[list[str], list[torch.Size]]:
-    """Names and shapes of a model's parameters, in ``parameters()`` order."""
+def model_layout(config: ModelConfig) -> tuple[list[str], list[torch.Size], list[str]]:
+    """A model's parameter names and shapes, in ``parameters()`` order, and the names of its
+    ``nn.Linear`` modules, in the same order."""
     with torch.device("meta"):
         model = SensorimotorEncoder(config)
     named = list(model.named_parameters())
-    return [n for n, _ in named], [p.shape for _, p in named]
+    linears = [n for n, mod in model.named_modules() if isinstance(mod, torch.nn.Linear)]
+    return [n for n, _ in named], [p.shape for _, p in named], linears
 
 
 # --- the stack: weights, gradients and Adam state of K seeds -------------------------------
@@ -125,11 +126,11 @@ class StackedEncoders:
         self.config, self.lr = config, lr
         self.params, self.exp_avg, self.exp_avg_sq = params, exp_avg, exp_avg_sq
         self.step = torch.full((), float(step), device=params[0].device)  # float32, as FusedAdam
-        self.names, self.shapes = parameter_layout(config)
+        self.names, self.shapes, linears = model_layout(config)
         self.index = index = {name: i for i, name in enumerate(self.names)}  # name -> position
         self.chains: dict[str, list[int]] = {}  # "sensor_encoder" -> its layers, in order
         self.linear_index: list[tuple[int, int]] = []  # (weight, bias) of each nn.Linear
-        for i, name in enumerate(linear_names(config)):
+        for i, name in enumerate(linears):
             self.chains.setdefault(name.split(".")[0], []).append(i)
             self.linear_index.append((index[f"{name}.weight"], index[f"{name}.bias"]))
         self._prepare()
@@ -413,7 +414,7 @@ def train_runs(
     device = resolve_device(config.device)
     config = replace(config, device=device)
     model_config = ModelConfig(kind=config.model)
-    if model_config.recurrent and device != "cpu":
+    if not trains_stacked(config.model, device):
         raise ValueError(
             "the stacked LSTM is CPU only: train recurrent models on CUDA with train.train"
         )
@@ -554,7 +555,7 @@ def train_seeds(
         raise InputError(f"{out}: exists and is not a folder")
     world = load_database(data).meta["world"]["name"]
     runs = [(seed, out / run_name(world, config.model, seed)) for seed in seeds]
-    if not ModelConfig(kind=config.model).recurrent or resolve_device(config.device) == "cpu":
+    if trains_stacked(config.model, config.device):
         return train_runs(data, runs, config, resume, on_epoch)
     results = []
     for seed, run_dir in runs:

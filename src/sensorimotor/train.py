@@ -234,10 +234,10 @@ def train(
     ``train_epoch_recurrent`` (``nn.LSTM``) to float32 rounding (``stacked_lstm``). The loop
     below trains the recurrent models on CUDA.
     """
-    device = resolve_device(config.device)
-    if config.model in ("s", "sm") or device == "cpu":
-        from sensorimotor.stacked import train_runs
+    from sensorimotor.stacked import train_runs, trains_stacked
 
+    device = resolve_device(config.device)
+    if trains_stacked(config.model, device):
         callback = None if on_epoch is None else (lambda _seed, r, st: on_epoch(r, st))
         return train_runs(data, [(config.seed, out)], config, resume, callback)[0]
     out = Path(out)
