@@ -3,16 +3,16 @@
 PyTorch's CPU LSTM spends most of a truncated-BPTT step (64 streams x 20 steps, 3 x 32
 units) on per-element work: its backward pass runs at a third of the speed of its forward.
 Here K seeds run as tensors with a leading seed axis; all of them see the same batches (the
-recurrent protocol does not shuffle), every product goes to the BLAS through ``baddbmm`` or
-``bmm``, and the per-element work of one time step, gates, cell and their derivatives, runs
-for every seed in one numba kernel. Shapes are time-major, (K, T, B, .), H = 32 units:
+recurrent protocol does not shuffle), every product goes to the BLAS through ``bmm``, and
+the per-element work of one time step, gates, cell and their derivatives, runs for every seed
+in one numba kernel, which also adds the bias and the step's recurrent product and sums the
+bias gradient. Shapes are time-major, (K, T, B, .), H = 32 units:
 
     forward   a_t = b + x_t W_ih^T + h_{t-1} W_hh^T           (K, B, 4H): gates i, f, g, o
               i, f, o = sigma(.)   g = tanh(.)   c_t = f c_{t-1} + i g   h_t = o tanh(c_t)
-    backward  dc += dh_t o (1 - tanh(c_t)^2)
+    backward  dh_t += da_{t+1} W_hh        dc += dh_t o (1 - tanh(c_t)^2)
               da_t = [dc g i(1-i), dc c_{t-1} f(1-f), dc i (1-g^2), dh_t tanh(c_t) o(1-o)]
-              dc <- dc f        dh_{t-1} += da_t W_hh
-              dW_ih = da^T x    dW_hh = da^T h_{t-1}    db = sum da    dx = da W_ih   (chunk)
+              dc <- dc f      db += da_t   dW_ih = da^T x    dW_hh = da^T h_{t-1}    dx = da W_ih
 
 numba has no vector ``exp``, so tanh is a rational function x P(x^2) / Q(x^2) fitted for this
 file (max error 3e-7 in float32, a few units in the last place) and sigma(x) = (1 + tanh(x/2))
@@ -31,7 +31,7 @@ import numba
 import numpy as np
 import torch
 
-from sensorimotor.stacked import RELU_GRAD, StackedEncoders
+from sensorimotor.stacked import RELU_GRAD, StackedEncoders, linear, matmul, weight_grad
 from sensorimotor.train import stream_layout
 
 # tanh(x) ~ x P(x^2) / Q(x^2) on |x| <= TANH_CLAMP (beyond it float32 tanh is +-1); relative
@@ -76,48 +76,56 @@ def tanh_array(x: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True, **_FAST)
-def cell_forward(act, hs, cs, tc, t):
-    """Step t of every seed: act[:, t] (K, B, 4H) pre-activations -> gates, in place; writes
-    c_t to cs[:, t + 1], tanh(c_t) to tc[:, t] and h_t to hs[:, t + 1]."""
+def cell_forward(act, rec, bias, scale, hs, cs, tc, t):
+    """Step t of every seed: act[:, t] (K, B, 4H) holds x_t W_ih^T; with the recurrent part
+    rec (K, B, 4H) = h_{t-1} W_hh^T and bias (K, 4H) it becomes the gates, in place. Writes
+    c_t to cs[:, t + 1], tanh(c_t) to tc[:, t] and h_t to hs[:, t + 1].
+
+    One branch-free loop for all four gates: with scale s = 1/2 (sigma) or 1 (tanh), the gate
+    is (1 - s) + s tanh(s a), which is (1 + tanh(a/2)) / 2 or tanh(a)."""
     K, _, B, G = act.shape
     H = G // 4
     for k in range(K):
+        bk = bias[k]
         for b in range(B):
-            a = act[k, t, b]
-            for u in range(2 * H):
-                a[u] = sigmoid32(a[u])
-            for u in range(2 * H, 3 * H):
-                a[u] = tanh32(a[u])
-            for u in range(3 * H, G):
-                a[u] = sigmoid32(a[u])
+            a, r = act[k, t, b], rec[k, b]
+            for u in range(G):
+                s = scale[u]
+                a[u] = (ONE - s) + s * tanh32(s * (a[u] + r[u] + bk[u]))
+            i, f, g, o = a[:H], a[H : 2 * H], a[2 * H : 3 * H], a[3 * H :]
             c_prev, c_new = cs[k, t, b], cs[k, t + 1, b]
+            for u in range(H):
+                c_new[u] = f[u] * c_prev[u] + i[u] * g[u]
             tanh_c, h_new = tc[k, t, b], hs[k, t + 1, b]
             for u in range(H):
-                c = a[H + u] * c_prev[u] + a[u] * a[2 * H + u]
-                c_new[u] = c
-                th = tanh32(c)
-                tanh_c[u] = th
-                h_new[u] = a[3 * H + u] * th
+                tanh_c[u] = tanh32(c_new[u])
+            for u in range(H):
+                h_new[u] = o[u] * tanh_c[u]
 
 
 @numba.njit(cache=True, **_FAST)
-def cell_backward(dh, act, cs, tc, dc, da, t):
-    """Step t backwards: from dh[:, t] (K, B, H) and dc (K, B, H) = dL/dc_t, write da[:, t]
-    (K, B, 4H) = dL/d(pre-activations) and turn dc into dL/dc_{t-1}."""
+def cell_backward(dh, rec, act, cs, tc, dc, da, db, t):
+    """Step t backwards: from dh[:, t] (K, B, H) from above, rec (K, B, H) = da_{t+1} W_hh
+    from the future, and dc (K, B, H) = dL/dc_t, write da[:, t] (K, B, 4H) = dL/d(gate
+    pre-activations), add it to db (K, 4H) and turn dc into dL/dc_{t-1}."""
     K, _, B, G = act.shape
     H = G // 4
     for k in range(K):
+        dbk = db[k]
         for b in range(B):
-            a, d = act[k, t, b], da[k, t, b]
-            dh_t, th, c_prev, dc_kb = dh[k, t, b], tc[k, t, b], cs[k, t, b], dc[k, b]
+            a, d, dc_kb = act[k, t, b], da[k, t, b], dc[k, b]
+            dh_t, r, th, c_prev = dh[k, t, b], rec[k, b], tc[k, t, b], cs[k, t, b]
             for u in range(H):
                 i, f, g, o = a[u], a[H + u], a[2 * H + u], a[3 * H + u]
-                dcu = dc_kb[u] + dh_t[u] * o * (ONE - th[u] * th[u])
+                dhu = dh_t[u] + r[u]
+                dcu = dc_kb[u] + dhu * o * (ONE - th[u] * th[u])
                 d[u] = dcu * g * i * (ONE - i)
                 d[H + u] = dcu * c_prev[u] * f * (ONE - f)
                 d[2 * H + u] = dcu * i * (ONE - g * g)
-                d[3 * H + u] = dh_t[u] * th[u] * o * (ONE - o)
+                d[3 * H + u] = dhu * th[u] * o * (ONE - o)
                 dc_kb[u] = dcu * f
+            for u in range(G):
+                dbk[u] += d[u]
 
 
 # --- a chunk of T steps through the whole encoder ------------------------------------------
@@ -127,28 +135,49 @@ def cell_backward(dh, act, cs, tc, dc, da, t):
 class _LayerBuffers:
     """One LSTM layer's tensors for a chunk of T steps, reused from chunk to chunk."""
 
-    act: torch.Tensor  # (K, T, B, 4H) pre-activations, then gates
+    act: torch.Tensor  # (K, T, B, 4H) x_t W_ih^T, then the gates
     hs: torch.Tensor  # (K, T + 1, B, H): h_{-1} (the carried state), h_0 .. h_{T-1}
     cs: torch.Tensor  # (K, T + 1, B, H): c alike
     tc: torch.Tensor  # (K, T, B, H): tanh(c_t)
     arrays: tuple  # numpy views of act, hs, cs, tc for the kernels
 
 
-def _buffers(net: StackedEncoders, t: int, b: int) -> list[_LayerBuffers]:
+@dataclass
+class _Buffers:
+    """Every tensor of a chunk but the gradients: each layer's, and scratch that the layers
+    share (one step's recurrent product forwards and backwards, a layer's da and dc)."""
+
+    layers: list[_LayerBuffers]
+    rec: torch.Tensor  # (K, B, 4H): h_{t-1} W_hh^T
+    rec_back: torch.Tensor  # (K, B, H): da_{t+1} W_hh
+    da: torch.Tensor  # (K, T, B, 4H)
+    dc: torch.Tensor  # (K, B, H)
+    scale: np.ndarray  # (4H,): 1/2 for the sigmoid gates i, f, o; 1 for g
+
+
+def _buffers(net: StackedEncoders, t: int, b: int) -> _Buffers:
     cache = net.__dict__.setdefault("_lstm_buffers", {})
     key = (net.k, t, b)
     if key not in cache:
-        c = net.config
-        h = c.lstm_size
+        k, h = net.k, net.config.lstm_size
         layers = []
-        for _ in range(c.lstm_layers):
-            act = torch.empty(net.k, t, b, 4 * h)
-            hs, cs = torch.empty(net.k, t + 1, b, h), torch.empty(net.k, t + 1, b, h)
-            tc = torch.empty(net.k, t, b, h)
+        for _ in range(net.config.lstm_layers):
+            act = torch.empty(k, t, b, 4 * h)
+            hs, cs = torch.empty(k, t + 1, b, h), torch.empty(k, t + 1, b, h)
+            tc = torch.empty(k, t, b, h)
             arrays = tuple(x.numpy() for x in (act, hs, cs, tc))
             layers.append(_LayerBuffers(act, hs, cs, tc, arrays))
+        scale = np.full(4 * h, HALF, dtype=np.float32)
+        scale[2 * h : 3 * h] = ONE
         cache.clear()  # at most two chunk lengths an epoch: keep only the current one
-        cache[key] = layers
+        cache[key] = _Buffers(
+            layers,
+            torch.empty(k, b, 4 * h),
+            torch.empty(k, b, h),
+            torch.empty(k, t, b, 4 * h),
+            torch.empty(k, b, h),
+            scale,
+        )
     return cache[key]
 
 
@@ -187,26 +216,27 @@ def forward_backward(
     # sensor_in: (K, TB, 5) -> relu -> (K, TB, 16)
     x_in = xs.reshape(1, n, -1).expand(K, n, -1)
     (i_in,) = net.chains["sensor_in"]
-    _, w_t, b = plan[i_in]
-    x = torch.baddbmm(b, x_in, w_t).relu_()  # (K, TB, 16)
+    x = linear(x_in, *plan[i_in]).relu_()  # (K, TB, 16)
     inputs = [x]  # input of every LSTM layer, (K, TB, in)
-    for layer, buf in enumerate(bufs):
+    rec, rec_a = bufs.rec, bufs.rec.numpy()
+    for layer, buf in enumerate(bufs.layers):
         wih, whh, bih, bhh = (net.params[i] for i in _lstm_params(net, layer))
-        act = buf.act.view(K, n, -1)
-        torch.baddbmm(bih + bhh, inputs[-1], wih.mT, out=act)
+        torch.bmm(inputs[-1], wih.mT, out=buf.act.view(K, n, -1))  # x_t W_ih^T, every t
+        bias = (bih + bhh).view(K, -1).numpy()  # (K, 4H)
         if state is None:
             buf.hs[:, 0].zero_()
             buf.cs[:, 0].zero_()
         else:
             buf.hs[:, 0].copy_(state[layer][0])
             buf.cs[:, 0].copy_(state[layer][1])
+        act_a, hs_a, cs_a, tc_a = buf.arrays
         whh_t = whh.mT
         for t in range(T):
-            buf.act[:, t].baddbmm_(buf.hs[:, t], whh_t)
-            cell_forward(*buf.arrays, t)
+            torch.bmm(buf.hs[:, t], whh_t, out=rec)  # (K, B, 4H)
+            cell_forward(act_a, rec_a, bias, bufs.scale, hs_a, cs_a, tc_a, t)
         inputs.append(buf.hs[:, 1:].reshape(K, n, -1))  # (K, TB, H), a view
     (i_out,) = net.chains["sensor_out"]
-    z = torch.baddbmm(plan[i_out][2], inputs[-1], plan[i_out][1])  # z_s (K, TB, 10)
+    z = linear(inputs[-1], *plan[i_out])  # z_s (K, TB, 10)
     if c.uses_motors:
         hm = net._forward(plan, "motor_encoder", xm.reshape(1, n, -1).expand(K, n, -1))
         z = torch.cat([z, hm[-1]], dim=-1)  # (K, TB, 15)
@@ -226,33 +256,36 @@ def forward_backward(
         net._backward(plan, grads, "motor_encoder", hm, dz[..., c.z_sensors :])
         dz = dz[..., : c.z_sensors]
     wi, bi = net.linear_index[i_out]
-    torch.bmm(dz.mT, inputs[-1], out=grads[wi])  # (K, 10, H)
+    weight_grad(dz, inputs[-1], grads[wi])  # (K, 10, H)
     torch.sum(dz, 1, keepdim=True, out=grads[bi])
-    dh = torch.bmm(dz, plan[i_out][0])  # (K, TB, H)
-    for layer in range(len(bufs) - 1, -1, -1):
-        buf = bufs[layer]
+    dh = matmul(dz, plan[i_out][0])  # (K, TB, H)
+    rec_back, da, dc = bufs.rec_back, bufs.da, bufs.dc
+    rec_back_a, da_a, dc_a = rec_back.numpy(), da.numpy(), dc.numpy()
+    da2 = da.view(K, n, -1)  # (K, TB, 4H)
+    for layer in range(len(bufs.layers) - 1, -1, -1):
+        buf = bufs.layers[layer]
         iwih, iwhh, ibih, ibhh = _lstm_params(net, layer)
         wih, whh = net.params[iwih], net.params[iwhh]
-        dh4 = dh.view(K, T, B, -1)  # dL/dh_t from above, then also from the future
-        da = torch.empty_like(buf.act)
-        dc = torch.zeros(K, B, c.lstm_size)
+        dh4 = dh.view(K, T, B, -1)  # dL/dh_t from above; the kernel adds that from the future
+        db = grads[ibih].view(K, -1)  # (K, 4H)
+        db.zero_()
+        dc.zero_()
+        rec_back.zero_()
         act_a, _, cs_a, tc_a = buf.arrays
-        dh_a, dc_a, da_a = dh4.numpy(), dc.numpy(), da.numpy()
+        dh_a, db_a = dh4.numpy(), db.numpy()
         for t in range(T - 1, -1, -1):
-            cell_backward(dh_a, act_a, cs_a, tc_a, dc_a, da_a, t)
+            cell_backward(dh_a, rec_back_a, act_a, cs_a, tc_a, dc_a, da_a, db_a, t)
             if t:
-                dh4[:, t - 1].baddbmm_(da[:, t], whh)
-        da2 = da.view(K, n, -1)  # (K, TB, 4H)
-        torch.bmm(da2.mT, inputs[layer], out=grads[iwih])
-        torch.bmm(da2.mT, buf.hs[:, :T].reshape(K, n, -1), out=grads[iwhh])
-        torch.sum(da2, 1, keepdim=True, out=grads[ibih])
+                torch.bmm(da[:, t], whh, out=rec_back)  # (K, B, H)
+        weight_grad(da2, inputs[layer], grads[iwih])
+        weight_grad(da2, buf.hs[:, :T].reshape(K, n, -1), grads[iwhh])
         grads[ibhh].copy_(grads[ibih])
         dh = torch.bmm(da2, wih)  # (K, TB, in): dL/d(layer input)
     dpre = RELU_GRAD(dh, inputs[0], 0)  # through sensor_in's ReLU
     wi, bi = net.linear_index[i_in]
-    torch.bmm(dpre.mT, x_in, out=grads[wi])
+    weight_grad(dpre, x_in, grads[wi])
     torch.sum(dpre, 1, keepdim=True, out=grads[bi])
-    return [(buf.hs[:, T].clone(), buf.cs[:, T].clone()) for buf in bufs]
+    return [(buf.hs[:, T].clone(), buf.cs[:, T].clone()) for buf in bufs.layers]
 
 
 def train_epoch_stacked_recurrent(

@@ -67,7 +67,7 @@ def train_epoch_feedforward(model, opt, s, m, batch: int, gen: torch.Generator) 
     """One epoch over shuffled transitions; returns the mean training error.
 
     The plain autograd loop: ``train`` runs S and SM through ``stacked`` instead, which tests and
-    ``benchmarks/bench_train.py`` check against this, bit for bit and in speed.
+    ``benchmarks/bench_train.py`` check against this, to float32 rounding and in speed.
     """
     n = len(s) - 1
     perm = torch.randperm(n, generator=gen).to(s.device)
@@ -229,10 +229,9 @@ def train(
     """Train one model on ``data`` into run folder ``out``; resumable after every epoch.
 
     On the CPU every model goes through ``stacked.train_runs`` (a stack of one, hand-written
-    backward pass): S and SM give the same numbers, bit for bit, as
-    ``train_epoch_feedforward`` with autograd; Rec-S and Rec-SM those of
-    ``train_epoch_recurrent`` (``nn.LSTM``) to float32 rounding (``stacked_lstm``). The loop
-    below trains the recurrent models on CUDA.
+    backward pass): S and SM give the numbers of ``train_epoch_feedforward`` with autograd,
+    Rec-S and Rec-SM those of ``train_epoch_recurrent`` (``nn.LSTM``, ``stacked_lstm``), both
+    to float32 rounding. The loop below trains the recurrent models on CUDA.
     """
     from sensorimotor.stacked import train_runs, trains_stacked
 
