@@ -10,8 +10,13 @@ import torch
 
 from sensorimotor.models import build_model
 from sensorimotor.stacked import StackedEncoders, run_name, train_seeds
-from sensorimotor.stacked_lstm import forward_backward, tanh_array, train_epoch_stacked_recurrent
-from sensorimotor.train import FusedAdam, TrainConfig, train, train_epoch_recurrent
+from sensorimotor.stacked_lstm import (
+    forward_backward,
+    sequence_errors,
+    tanh_array,
+    train_epoch_stacked_recurrent,
+)
+from sensorimotor.train import FusedAdam, TrainConfig, model_error, train, train_epoch_recurrent
 
 pytestmark = pytest.mark.usefixtures("one_thread")
 
@@ -122,3 +127,16 @@ def test_each_recurrent_seed_stops_as_it_does_alone(square_db_path, tmp_path):
         assert all(torch.equal(a[name], b[name]) for name in a)
         stops.add(result.epochs)
     assert len(stops) > 1, "the seeds should stop at different epochs for this test to bite"
+
+
+@pytest.mark.parametrize("kind", ["rec-s", "rec-sm"])
+def test_validation_of_a_stack_is_model_error_of_each_seed(kind):
+    g = torch.Generator().manual_seed(3)
+    s, m = torch.rand(1000, 5, generator=g), torch.rand(1000, 2, generator=g)
+    models = [build_model(kind, seed=sd) for sd in (6, 1, 8)]
+    net = StackedEncoders.from_models(models)
+    for chunk in (4096, 97):  # the state carried across chunks, the last one short
+        mine = sequence_errors(net, s, m, chunk=chunk)
+        ref = [model_error(model, s, m) for model in models]
+        assert mine == pytest.approx(ref, rel=1e-5)
+    assert len(set(mine)) == 3

@@ -500,7 +500,7 @@ def train_runs(
         epoch = members[0].epoch
         t0 = time.perf_counter()
         if model_config.recurrent:
-            from sensorimotor.stacked_lstm import train_epoch_stacked_recurrent
+            from sensorimotor.stacked_lstm import sequence_errors, train_epoch_stacked_recurrent
 
             errors = train_epoch_stacked_recurrent(net, s, m, config.batch_size, config.horizon)
         else:
@@ -509,12 +509,19 @@ def train_runs(
             )
         train_errors = errors.tolist()
         seconds = time.perf_counter() - t0
+        t1 = time.perf_counter()
+        if model_config.recurrent:  # every seed at once, as train.model_error does each
+            val_errors = sequence_errors(net, vs, vm)
+        val_seconds = (time.perf_counter() - t1) / len(members)
         for k, run in enumerate(members):
             t1 = time.perf_counter()
             net.load_into(k, run.model)
-            val_error = train_mod.model_error(run.model, vs, vm)  # train's, as train.train
+            if model_config.recurrent:
+                val_error = val_errors[k]
+            else:
+                val_error = train_mod.model_error(run.model, vs, vm)  # train's, as train.train
             improved, best = run.stopper.update(epoch, val_error)
-            run.elapsed += seconds + time.perf_counter() - t1
+            run.elapsed += seconds + val_seconds + time.perf_counter() - t1
             record = EpochRecord(
                 epoch, train_errors[k], val_error, improved, best, seconds, n / seconds, run.elapsed
             )

@@ -128,6 +128,40 @@ def cell_backward(dh, rec, act, cs, tc, dc, da, db, t):
                 dbk[u] += d[u]
 
 
+@numba.njit(cache=True, **_FAST)
+def layer_sequence(act, whh_t, bias, scale, h, c, hs):
+    """One layer of every seed over a whole sequence of batch one, forward only: act (K, L,
+    4H) holds x_t W_ih^T; h, c (K, H) the state, carried in place; writes h_t to hs (K, L, H).
+    The product with W_hh, a (H) x (H, 4H) one per step, is too small for the BLAS."""
+    K, L, G = act.shape
+    H = G // 4
+    a = np.empty(G, dtype=np.float32)
+    for k in range(K):
+        w, bk, hk, ck = whh_t[k], bias[k], h[k], c[k]
+        for t in range(L):
+            x = act[k, t]
+            for u in range(G):
+                a[u] = x[u] + bk[u]
+            for j in range(0, H - 3, 4):  # four rows of W_hh^T a pass: fewer loads of a
+                h0, h1, h2, h3 = hk[j], hk[j + 1], hk[j + 2], hk[j + 3]
+                w0, w1, w2, w3 = w[j], w[j + 1], w[j + 2], w[j + 3]
+                for u in range(G):
+                    a[u] += (h0 * w0[u] + h1 * w1[u]) + (h2 * w2[u] + h3 * w3[u])
+            for j in range(H - H % 4, H):
+                hj, wj = hk[j], w[j]
+                for u in range(G):
+                    a[u] += hj * wj[u]
+            for u in range(G):
+                sc = scale[u]
+                a[u] = (ONE - sc) + sc * tanh32(sc * a[u])
+            out = hs[k, t]
+            for u in range(H):
+                cu = a[H + u] * ck[u] + a[u] * a[2 * H + u]
+                ck[u] = cu
+                hk[u] = a[3 * H + u] * tanh32(cu)
+                out[u] = hk[u]
+
+
 # --- a chunk of T steps through the whole encoder ------------------------------------------
 
 
@@ -316,3 +350,40 @@ def train_epoch_stacked_recurrent(
             )
             net.adam_step()
     return sq_sum / n
+
+
+def sequence_errors(
+    net: StackedEncoders, sensors: torch.Tensor, motors: torch.Tensor, chunk: int = 4096
+) -> list[float]:
+    """Each seed's error over one contiguous split (n, 5), (n, 2), from a zero state carried
+    throughout: ``train.model_error`` of every seed at once, to float32 rounding."""
+    c, plan, K = net.config, net.layers, net.k
+    n, H = len(sensors), c.lstm_size
+    scale = np.full(4 * H, HALF, dtype=np.float32)
+    scale[2 * H : 3 * H] = ONE
+    state = [
+        (np.zeros((K, H), np.float32), np.zeros((K, H), np.float32)) for _ in range(c.lstm_layers)
+    ]
+    sq_sum = torch.zeros(K, dtype=torch.float64)
+    (i_in,), (i_out,) = net.chains["sensor_in"], net.chains["sensor_out"]
+    with torch.no_grad():
+        for i in range(0, n - 1, chunk):
+            xs = sensors[i : i + chunk]  # (L, 5): predictions of steps i + 1 .. i + L
+            L = len(xs)
+            x = linear(xs.expand(K, L, -1), *plan[i_in]).relu_()  # (K, L, 16)
+            for layer, (h, cell) in enumerate(state):
+                wih, whh, bih, bhh = (net.params[j] for j in _lstm_params(net, layer))
+                act = torch.bmm(x, wih.mT)  # (K, L, 4H)
+                x = torch.empty(K, L, H)
+                whh_t = whh.mT.contiguous().numpy()  # (K, H, 4H)
+                bias = (bih + bhh).view(K, -1).numpy()
+                layer_sequence(act.numpy(), whh_t, bias, scale, h, cell, x.numpy())
+            z = linear(x, *plan[i_out])  # (K, L, 10)
+            if c.uses_motors:
+                zm = net._forward(plan, "motor_encoder", motors[i : i + L].expand(K, L, -1))[-1]
+                z = torch.cat([z, zm], dim=-1)  # (K, L, 15)
+            pred = net._forward(plan, "predictor", z)[-1]  # (K, L, 5)
+            target = sensors[i + 1 : i + L + 1]  # one fewer at the end of the split
+            diff = pred[:, : len(target)] - target
+            sq_sum += diff.square().sum((1, 2)).double()
+    return (sq_sum / (n - 1)).tolist()
