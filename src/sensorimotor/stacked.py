@@ -66,7 +66,13 @@ from sensorimotor.train import (
     stop_reason,
 )
 
-RELU_GRAD = torch.ops.aten.threshold_backward.default  # autograd's ReLU backward, in one call
+_THRESHOLD_BACKWARD = torch.ops.aten.threshold_backward.grad_input
+
+
+def relu_grad_(dy: torch.Tensor, h: torch.Tensor) -> torch.Tensor:
+    """dy zeroed where the ReLU output h is not positive, in place: autograd's ReLU backward
+    in one call, with no new multi-MB output."""
+    return _THRESHOLD_BACKWARD(dy, h, 0, grad_input=dy)
 CHUNK_BATCHES = 512  # batches gathered at once: K x 32,768 transitions, a few MB
 ALIGN_ROWS = 16  # gathered rows padded to a multiple of this: 64-byte aligned seed slabs
 ADAM_VECTOR = 16  # floats per SIMD vector, at most (AVX-512); see StackedEncoders._adam_lists
@@ -305,7 +311,7 @@ class StackedEncoders:
             weight_grad(dy, h, grads[wi])  # (K, out, in) = dy^T h
             torch.sum(dy, 1, keepdim=True, out=grads[bi])  # (K, 1, out)
             if j:
-                dy = RELU_GRAD(matmul(dy, w), h, 0)  # (K, B, in); h is a ReLU output
+                dy = relu_grad_(matmul(dy, w), h)  # (K, B, in); h is a ReLU output
             elif input_grad:
                 return matmul(dy, w)  # (K, B, in)
         return None

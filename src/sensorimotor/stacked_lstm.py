@@ -31,7 +31,7 @@ import numba
 import numpy as np
 import torch
 
-from sensorimotor.stacked import RELU_GRAD, StackedEncoders, linear, matmul, weight_grad
+from sensorimotor.stacked import StackedEncoders, linear, matmul, relu_grad_, weight_grad
 from sensorimotor.train import stream_layout
 
 # tanh(x) ~ x P(x^2) / Q(x^2) on |x| <= TANH_CLAMP (beyond it float32 tanh is +-1); relative
@@ -315,7 +315,7 @@ def forward_backward(
         weight_grad(da2, buf.hs[:, :T].reshape(K, n, -1), grads[iwhh])
         grads[ibhh].copy_(grads[ibih])
         dh = torch.bmm(da2, wih)  # (K, TB, in): dL/d(layer input)
-    dpre = RELU_GRAD(dh, inputs[0], 0)  # through sensor_in's ReLU
+    dpre = relu_grad_(dh, inputs[0])  # through sensor_in's ReLU
     wi, bi = net.linear_index[i_in]
     weight_grad(dpre, x_in, grads[wi])
     torch.sum(dpre, 1, keepdim=True, out=grads[bi])
