@@ -31,10 +31,17 @@ def _equal(a: dict, b: dict) -> bool:
     return a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
 
 
-def _close_weights(a: dict, b: dict, tol: float = 1e-5) -> bool:
-    """Weights that agree to float32 rounding grown over training: 99 % of them within tol."""
-    gap = torch.cat([(a[k] - b[k]).abs().flatten() for k in a])
-    return a.keys() == b.keys() and float(gap.quantile(0.99)) < tol and float(gap.max()) < 1e-3
+def _close(a: dict | list, b: dict | list, tol: float = 1e-5) -> bool:
+    """Tensors that agree to float32 rounding grown over training, relative to the largest
+    element of b: 99 % within tol, none further than 1e-2 (Adam can move a weight whose
+    gradient is nearly zero by up to its learning rate, 1e-3, a step)."""
+    if isinstance(a, dict):
+        if a.keys() != b.keys():
+            return False
+        a, b = list(a.values()), [b[k] for k in a]
+    gap = torch.cat([(x - y).abs().flatten() for x, y in zip(a, b, strict=True)])
+    scale = max(float(torch.cat([y.abs().flatten() for y in b]).max()), 1e-30)
+    return float(gap.quantile(0.99)) < tol * scale and float(gap.max()) < 1e-2 * scale
 
 
 # --- the hand-written backward pass and one epoch ------------------------------------------
@@ -63,7 +70,7 @@ def test_gradients_equal_autograd(kind, batch):
 
 
 @pytest.mark.parametrize("kind", ["s", "sm"])
-def test_stacked_epochs_equal_the_plain_loop_and_do_not_depend_on_the_stack(kind):
+def test_stacked_epochs_agree_with_the_plain_loop_and_do_not_depend_on_the_stack(kind):
     g = torch.Generator().manual_seed(1)
     n = 64 * 40 + 37  # a partial last batch
     s, m = torch.rand(n + 1, 5, generator=g), torch.rand(n + 1, 2, generator=g)
@@ -82,8 +89,11 @@ def test_stacked_epochs_equal_the_plain_loop_and_do_not_depend_on_the_stack(kind
             train_epoch_feedforward(model, opt, s, m, 64, epoch_generator(sd, e)) for e in range(3)
         ]
         alone = net.load_into(k, build_model(kind))
-        assert _close_weights(model.state_dict(), alone.state_dict())
-        assert net.optimizer_state(k)["steps"] == opt.steps
+        assert _close(model.state_dict(), alone.state_dict())
+        state = net.optimizer_state(k)
+        assert state["steps"] == opt.steps
+        assert _close(state["exp_avg"], opt.exp_avg)
+        assert _close(state["exp_avg_sq"], opt.exp_avg_sq)
         assert torch.allclose(
             errors[:, k].double(), torch.tensor(plain, dtype=torch.float64), rtol=1e-4
         )
@@ -131,7 +141,7 @@ def test_each_stacked_seed_is_its_solo_run_down_to_early_stopping(kind, square_d
         assert result.run_dir == folder
         assert result.stopped == "early stopping"
         # the seed alone, in a stack of one: the same bits (the reference loop of train.py
-        # agrees to rounding, which grows over epochs: test_stacked_epochs_equal_the_plain_loop)
+        # agrees to rounding, which grows over epochs: test_stacked_epochs_agree_with_the_plain_loop)
         (solo,) = train_seeds(square_db_path, tmp_path / "solo", config, [seed])
         assert solo.epochs == result.epochs
         assert [r.val_error for r in solo.history] == [r.val_error for r in result.history]

@@ -133,10 +133,16 @@ def test_each_recurrent_seed_stops_as_it_does_alone(square_db_path, tmp_path):
 def test_validation_of_a_stack_is_model_error_of_each_seed(kind):
     g = torch.Generator().manual_seed(3)
     s, m = torch.rand(1000, 5, generator=g), torch.rand(1000, 2, generator=g)
-    models = [build_model(kind, seed=sd) for sd in (6, 1, 8)]
+    seeds = (6, 1, 8)
+    models = [build_model(kind, seed=sd) for sd in seeds]
     net = StackedEncoders.from_models(models)
-    for chunk in (4096, 97):  # the state carried across chunks, the last one short
+    ref = [model_error(model, s, m) for model in models]
+    for chunk in (4096, 96):  # one padded chunk; the state carried over ten, the last short
         mine = sequence_errors(net, s, m, chunk=chunk)
-        ref = [model_error(model, s, m) for model in models]
         assert mine == pytest.approx(ref, rel=1e-5)
+        for k, sd in enumerate(seeds):  # each seed alone: the same bits
+            alone = StackedEncoders.from_models([build_model(kind, seed=sd)])
+            assert sequence_errors(alone, s, m, chunk=chunk) == [mine[k]]
     assert len(set(mine)) == 3
+    with pytest.raises(ValueError, match="multiple of 16"):
+        sequence_errors(net, s, m, chunk=97)

@@ -66,13 +66,6 @@ from sensorimotor.train import (
     stop_reason,
 )
 
-_THRESHOLD_BACKWARD = torch.ops.aten.threshold_backward.grad_input
-
-
-def relu_grad_(dy: torch.Tensor, h: torch.Tensor) -> torch.Tensor:
-    """dy zeroed where the ReLU output h is not positive, in place: autograd's ReLU backward
-    in one call, with no new multi-MB output."""
-    return _THRESHOLD_BACKWARD(dy, h, 0, grad_input=dy)
 CHUNK_BATCHES = 512  # batches gathered at once: K x 32,768 transitions, a few MB
 ALIGN_ROWS = 16  # gathered rows padded to a multiple of this: 64-byte aligned seed slabs
 ADAM_VECTOR = 16  # floats per SIMD vector, at most (AVX-512); see StackedEncoders._adam_lists
@@ -106,6 +99,15 @@ def model_layout(config: ModelConfig) -> tuple[list[str], list[torch.Size], list
     named = list(model.named_parameters())
     linears = [n for n, mod in model.named_modules() if isinstance(mod, torch.nn.Linear)]
     return [n for n, _ in named], [p.shape for _, p in named], linears
+
+
+_THRESHOLD_BACKWARD = torch.ops.aten.threshold_backward.grad_input
+
+
+def relu_grad_(dy: torch.Tensor, h: torch.Tensor) -> torch.Tensor:
+    """dy zeroed where the ReLU output h is not positive, in place: autograd's ReLU backward
+    in one call, with no new multi-MB output."""
+    return _THRESHOLD_BACKWARD(dy, h, 0, grad_input=dy)
 
 
 # --- batched products, each seed its own matrices ------------------------------------------
@@ -518,7 +520,7 @@ def train_runs(
         t1 = time.perf_counter()
         if model_config.recurrent:  # every seed at once, as train.model_error does each
             val_errors = sequence_errors(net, vs, vm)
-        val_seconds = (time.perf_counter() - t1) / len(members)
+        val_seconds = time.perf_counter() - t1  # each seed is charged the stack's time
         for k, run in enumerate(members):
             t1 = time.perf_counter()
             net.load_into(k, run.model)

@@ -3,7 +3,7 @@
 PyTorch's CPU LSTM spends most of a truncated-BPTT step (64 streams x 20 steps, 3 x 32
 units) on per-element work: its backward pass runs at a third of the speed of its forward.
 Here K seeds run as tensors with a leading seed axis; all of them see the same batches (the
-recurrent protocol does not shuffle), every product goes to the BLAS through ``bmm``, and
+recurrent protocol does not shuffle), every product goes to the BLAS (``bmm``, ``baddbmm``), and
 the per-element work of one time step, gates, cell and their derivatives, runs for every seed
 in one numba kernel, which also adds the bias and the step's recurrent product and sums the
 bias gradient. Shapes are time-major, (K, T, B, .), H = 32 units:
@@ -31,7 +31,14 @@ import numba
 import numpy as np
 import torch
 
-from sensorimotor.stacked import StackedEncoders, linear, matmul, relu_grad_, weight_grad
+from sensorimotor.stacked import (
+    ALIGN_ROWS,
+    StackedEncoders,
+    linear,
+    matmul,
+    relu_grad_,
+    weight_grad,
+)
 from sensorimotor.train import stream_layout
 
 # tanh(x) ~ x P(x^2) / Q(x^2) on |x| <= TANH_CLAMP (beyond it float32 tanh is +-1); relative
@@ -300,7 +307,7 @@ def forward_backward(
         buf = bufs.layers[layer]
         iwih, iwhh, ibih, ibhh = _lstm_params(net, layer)
         wih, whh = net.params[iwih], net.params[iwhh]
-        dh4 = dh.view(K, T, B, -1)  # dL/dh_t from above; the kernel adds that from the future
+        dh4 = dh.reshape(K, T, B, -1)  # dL/dh_t from above; the kernel adds the future's
         db = grads[ibih].view(K, -1)  # (K, 4H)
         db.zero_()
         dc.zero_()
@@ -356,7 +363,13 @@ def sequence_errors(
     net: StackedEncoders, sensors: torch.Tensor, motors: torch.Tensor, chunk: int = 4096
 ) -> list[float]:
     """Each seed's error over one contiguous split (n, 5), (n, 2), from a zero state carried
-    throughout: ``train.model_error`` of every seed at once, to float32 rounding."""
+    throughout: ``train.model_error`` of every seed at once, to float32 rounding.
+
+    ``chunk`` steps run at a time, a multiple of 16 so that every seed's slab of a stacked
+    product starts on a 64-byte boundary, as alone; the last chunk is padded at its end (the
+    padding comes after every real step, and the state after it is not used)."""
+    if chunk % ALIGN_ROWS:
+        raise ValueError(f"chunk must be a multiple of {ALIGN_ROWS}, got {chunk}")
     c, plan, K = net.config, net.layers, net.k
     n, H = len(sensors), c.lstm_size
     scale = np.full(4 * H, HALF, dtype=np.float32)
@@ -368,7 +381,11 @@ def sequence_errors(
     (i_in,), (i_out,) = net.chains["sensor_in"], net.chains["sensor_out"]
     with torch.no_grad():
         for i in range(0, n - 1, chunk):
-            xs = sensors[i : i + chunk]  # (L, 5): predictions of steps i + 1 .. i + L
+            xs, xm = sensors[i : i + chunk], motors[i : i + chunk]  # predict steps i + 1 ..
+            target = sensors[i + 1 : i + chunk + 1]  # one fewer at the end of the split
+            pad = -len(xs) % ALIGN_ROWS
+            if pad:
+                xs, xm = (torch.cat([x, x.new_zeros(pad, x.shape[1])]) for x in (xs, xm))
             L = len(xs)
             x = linear(xs.expand(K, L, -1), *plan[i_in]).relu_()  # (K, L, 16)
             for layer, (h, cell) in enumerate(state):
@@ -380,10 +397,9 @@ def sequence_errors(
                 layer_sequence(act.numpy(), whh_t, bias, scale, h, cell, x.numpy())
             z = linear(x, *plan[i_out])  # (K, L, 10)
             if c.uses_motors:
-                zm = net._forward(plan, "motor_encoder", motors[i : i + L].expand(K, L, -1))[-1]
+                zm = net._forward(plan, "motor_encoder", xm.expand(K, L, -1))[-1]
                 z = torch.cat([z, zm], dim=-1)  # (K, L, 15)
             pred = net._forward(plan, "predictor", z)[-1]  # (K, L, 5)
-            target = sensors[i + 1 : i + L + 1]  # one fewer at the end of the split
             diff = pred[:, : len(target)] - target
             sq_sum += diff.square().sum((1, 2)).double()
     return (sq_sum / (n - 1)).tolist()
