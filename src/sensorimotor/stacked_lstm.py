@@ -67,11 +67,6 @@ def tanh32(x):
     return x * p / q
 
 
-@numba.njit(inline="always", **_FAST)
-def sigmoid32(x):
-    return HALF + HALF * tanh32(HALF * x)
-
-
 @numba.njit(cache=True, **_FAST)
 def tanh_array(x: np.ndarray) -> np.ndarray:
     """``tanh32`` of every element (for tests and for checking the fit)."""
