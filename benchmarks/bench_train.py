@@ -6,8 +6,9 @@ and 10 seeds at once. For Rec-S and Rec-SM, in worker processes of one thread: t
 (``train.train_epoch_recurrent``, nn.LSTM) with glibc's default allocator and with
 ``train.keep_freed_memory`` (as training runs), the stacked LSTM (``stacked_lstm``) with K = 1
 and 5 seeds, and two processes at once (as ``reproduce`` runs them). Every ratio is to the plain
-loop measured in the same run (for the recurrent models, with glibc's default allocator); the time of one epoch over an
-800,000-step train split (a 1 M-step database) is extrapolated from the samples/s.
+loop measured in the same run (for the recurrent models, with glibc's default allocator); the
+time of one epoch over an 800,000-step train split (a 1 M-step database) is extrapolated from
+the samples/s.
 
 The data are a generated Square database. Each measurement is the best of a few repeats of a
 fixed number of batches after a warm-up. Wall-clock numbers move with the machine's load,

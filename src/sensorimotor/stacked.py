@@ -516,20 +516,19 @@ def train_runs(
                 net, s, m, [r.seed for r in members], epoch, config.batch_size
             )
         train_errors = errors.tolist()
-        seconds = time.perf_counter() - t0
-        t1 = time.perf_counter()
+        seconds = time.perf_counter() - t0  # training alone: the record's samples/s
+        for k, run in enumerate(members):
+            net.load_into(k, run.model)  # validated (feed-forward) and saved below
         if model_config.recurrent:  # every seed at once, as train.model_error does each
             val_errors = sequence_errors(net, vs, vm)
-        val_seconds = time.perf_counter() - t1  # each seed is charged the stack's time
+        else:
+            val_errors = [train_mod.model_error(run.model, vs, vm) for run in members]
+        stack_seconds = time.perf_counter() - t0  # charged to each seed, as its epoch's time
         for k, run in enumerate(members):
             t1 = time.perf_counter()
-            net.load_into(k, run.model)
-            if model_config.recurrent:
-                val_error = val_errors[k]
-            else:
-                val_error = train_mod.model_error(run.model, vs, vm)  # train's, as train.train
+            val_error = val_errors[k]
             improved, best = run.stopper.update(epoch, val_error)
-            run.elapsed += seconds + val_seconds + time.perf_counter() - t1
+            run.elapsed += stack_seconds + time.perf_counter() - t1
             record = EpochRecord(
                 epoch, train_errors[k], val_error, improved, best, seconds, n / seconds, run.elapsed
             )

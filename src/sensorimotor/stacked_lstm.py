@@ -191,6 +191,13 @@ class _Buffers:
     scale: np.ndarray  # (4H,): 1/2 for the sigmoid gates i, f, o; 1 for g
 
 
+def gate_scale(h: int) -> np.ndarray:
+    """(4H,) the kernels' gate scale: 1/2 for the sigmoid gates i, f, o; 1 for g (tanh)."""
+    scale = np.full(4 * h, HALF, dtype=np.float32)
+    scale[2 * h : 3 * h] = ONE
+    return scale
+
+
 def _buffers(net: StackedEncoders, t: int, b: int) -> _Buffers:
     cache = net.__dict__.setdefault("_lstm_buffers", {})
     key = (net.k, t, b)
@@ -203,8 +210,6 @@ def _buffers(net: StackedEncoders, t: int, b: int) -> _Buffers:
             tc = torch.empty(k, t, b, h)
             arrays = tuple(x.numpy() for x in (act, hs, cs, tc))
             layers.append(_LayerBuffers(act, hs, cs, tc, arrays))
-        scale = np.full(4 * h, HALF, dtype=np.float32)
-        scale[2 * h : 3 * h] = ONE
         cache.clear()  # at most two chunk lengths an epoch: keep only the current one
         cache[key] = _Buffers(
             layers,
@@ -212,7 +217,7 @@ def _buffers(net: StackedEncoders, t: int, b: int) -> _Buffers:
             torch.empty(k, b, h),
             torch.empty(k, t, b, 4 * h),
             torch.empty(k, b, h),
-            scale,
+            gate_scale(h),
         )
     return cache[key]
 
@@ -367,11 +372,15 @@ def sequence_errors(
         raise ValueError(f"chunk must be a multiple of {ALIGN_ROWS}, got {chunk}")
     c, plan, K = net.config, net.layers, net.k
     n, H = len(sensors), c.lstm_size
-    scale = np.full(4 * H, HALF, dtype=np.float32)
-    scale[2 * H : 3 * H] = ONE
-    state = [
-        (np.zeros((K, H), np.float32), np.zeros((K, H), np.float32)) for _ in range(c.lstm_layers)
-    ]
+    scale = gate_scale(H)
+    layers = []  # per LSTM layer: W_ih (K, 4H, in), W_hh^T (K, H, 4H), bias (K, 4H), h, c (K, H)
+    for layer in range(c.lstm_layers):
+        wih, whh, bih, bhh = (net.params[j] for j in _lstm_params(net, layer))
+        whh_t = whh.mT.contiguous().numpy()
+        bias = (bih + bhh).view(K, -1).numpy()
+        layers.append(
+            (wih, whh_t, bias, np.zeros((K, H), np.float32), np.zeros((K, H), np.float32))
+        )
     sq_sum = torch.zeros(K, dtype=torch.float64)
     (i_in,), (i_out,) = net.chains["sensor_in"], net.chains["sensor_out"]
     with torch.no_grad():
@@ -383,12 +392,9 @@ def sequence_errors(
                 xs, xm = (torch.cat([x, x.new_zeros(pad, x.shape[1])]) for x in (xs, xm))
             L = len(xs)
             x = linear(xs.expand(K, L, -1), *plan[i_in]).relu_()  # (K, L, 16)
-            for layer, (h, cell) in enumerate(state):
-                wih, whh, bih, bhh = (net.params[j] for j in _lstm_params(net, layer))
+            for wih, whh_t, bias, h, cell in layers:
                 act = torch.bmm(x, wih.mT)  # (K, L, 4H)
                 x = torch.empty(K, L, H)
-                whh_t = whh.mT.contiguous().numpy()  # (K, H, 4H)
-                bias = (bih + bhh).view(K, -1).numpy()
                 layer_sequence(act.numpy(), whh_t, bias, scale, h, cell, x.numpy())
             z = linear(x, *plan[i_out])  # (K, L, 10)
             if c.uses_motors:
