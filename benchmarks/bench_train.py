@@ -48,50 +48,61 @@ STACK_TARGET = 3.0  # five stacked seeds: total samples/s over that of one
 NAMES = {"s": "S", "sm": "SM", "rec-s": "Rec-S", "rec-sm": "Rec-SM"}
 
 
-def train_split(n: int) -> tuple[torch.Tensor, torch.Tensor]:
-    """Scaled sensors (n + 1, 5) and motors (n + 1, 2) of a generated Square database."""
+def train_split(n: int, device: str = "cpu") -> tuple[torch.Tensor, torch.Tensor]:
+    """Scaled sensors (n + 1, 5) and motors (n + 1, 2) of a generated Square database, resident
+    on ``device``."""
     db = generate(load_world("square"), n + 1, seed=0)
     s = torch.from_numpy(scale_sensors(db.sensors, db.max_range))
-    return s, torch.from_numpy(scale_motors(db.motors))
+    return s.to(device), torch.from_numpy(scale_motors(db.motors)).to(device)
 
 
-def timed(fn, repeats: int) -> tuple[float, float]:
+def sync(device) -> None:
+    if torch.device(device).type == "cuda":
+        torch.cuda.synchronize()
+
+
+def timed(fn, repeats: int, device: str = "cpu") -> tuple[float, float]:
     """Best wall and best CPU seconds of ``repeats`` calls of ``fn(i)``."""
     walls, cpus = [], []
     for i in range(repeats):
+        sync(device)
         t0, c0 = time.perf_counter(), time.process_time()
         fn(i)
+        sync(device)
         walls.append(time.perf_counter() - t0)
         cpus.append(time.process_time() - c0)
     return min(walls), min(cpus)
 
 
 def bench_plain_ff(kind, s, m, warm, repeats):
-    model = build_model(kind, seed=0)
+    model = build_model(kind, seed=0).to(s.device)
     opt = FusedAdam(model.parameters())
     train_epoch_feedforward(model, opt, *warm, BATCH, epoch_generator(0, 99))
     return timed(
-        lambda i: train_epoch_feedforward(model, opt, s, m, BATCH, epoch_generator(0, i)), repeats
+        lambda i: train_epoch_feedforward(model, opt, s, m, BATCH, epoch_generator(0, i)),
+        repeats,
+        s.device,
     )
 
 
 def bench_stacked(kind, k, s, m, warm, repeats):
     seeds = list(range(k))
-    net = StackedEncoders.from_models([build_model(kind, seed=sd) for sd in seeds])
+    models = [build_model(kind, seed=sd).to(s.device) for sd in seeds]
+    net = StackedEncoders.from_models(models)
     train_epoch_stacked(net, *warm, seeds, 99, BATCH)
-    return timed(lambda i: train_epoch_stacked(net, s, m, seeds, i, BATCH), repeats)
+    return timed(lambda i: train_epoch_stacked(net, s, m, seeds, i, BATCH), repeats, s.device)
 
 
-def _rec_worker(kind, k, n, warm_n, keep, barrier, results):
+def _rec_worker(kind, k, n, warm_n, keep, barrier, results, device="cpu"):
     """One of the parallel processes, one thread: ``k`` = 0 the plain loop (nn.LSTM), else a
     stack of ``k`` seeds (``stacked_lstm``); timed from a start common to all processes."""
     torch.set_num_threads(1)
     if keep:
         keep_freed_memory()
-    s, m = train_split(n)
+    s, m = train_split(n, device)
     warm = (s[: warm_n + 1], m[: warm_n + 1])
     if k == 0:
-        model = build_model(kind, seed=0)
+        model = build_model(kind, seed=0).to(device)
         opt = FusedAdam(model.parameters())
 
         def epoch(s, m):
@@ -103,13 +114,17 @@ def _rec_worker(kind, k, n, warm_n, keep, barrier, results):
             train_epoch_stacked_recurrent(net, s, m, BATCH, HORIZON)
 
     epoch(*warm)
+    sync(device)
     barrier.wait()
     t0, c0 = time.perf_counter(), time.process_time()
     epoch(s, m)
+    sync(device)
     results.put((n * max(k, 1), time.perf_counter() - t0, time.process_time() - c0))
 
 
-def bench_rec(kind, k, n, warm_n, workers: int, repeats: int, keep: bool = True):
+def bench_rec(
+    kind, k, n, warm_n, workers: int, repeats: int, keep: bool = True, device: str = "cpu"
+):
     """Total samples/s (wall, cpu) of ``workers`` spawned processes training at once, each a
     stack of ``k`` seeds (0: the plain loop); ``keep``: with ``train.keep_freed_memory``, as
     training runs, else glibc's default allocator."""
@@ -118,7 +133,9 @@ def bench_rec(kind, k, n, warm_n, workers: int, repeats: int, keep: bool = True)
     for _ in range(repeats):
         barrier, results = ctx.Barrier(workers), ctx.Queue()
         procs = [
-            ctx.Process(target=_rec_worker, args=(kind, k, n, warm_n, keep, barrier, results))
+            ctx.Process(
+                target=_rec_worker, args=(kind, k, n, warm_n, keep, barrier, results, device)
+            )
             for _ in range(workers)
         ]
         for p in procs:
@@ -141,22 +158,34 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="short run: fewer batches, 1 repeat")
     parser.add_argument("--batches", type=int, default=None, help="timed batches per measure")
     parser.add_argument("--repeats", type=int, default=None, help="repeats; the best counts")
+    parser.add_argument(
+        "--device",
+        default="cpu",
+        choices=("cpu", "cuda"),
+        help="cuda: the data resident on the GPU; the stacked LSTM (CPU only) is left out",
+    )
     args = parser.parse_args()
+    device = args.device
+    if device == "cuda" and not torch.cuda.is_available():
+        parser.error("--device cuda: no CUDA device here")
     batches = args.batches or (300 if args.quick else 1500)
     repeats = args.repeats or (1 if args.quick else 3)
     torch.set_num_threads(1)
     keep_freed_memory()  # as train.train and stacked.train_runs do
     console = Console(width=150)
+    where = torch.backends.cpu.get_cpu_capability()
+    if device == "cuda":
+        where = f"{torch.cuda.get_device_name(0)} (CUDA {torch.version.cuda}), CPU {where}"
     console.print(
         f"sensorimotor {__version__}, torch {torch.__version__}, batch {BATCH}, 1 thread, "
-        f"{batches} batches a measure (best of {repeats}), {torch.backends.cpu.get_cpu_capability()}"
+        f"{batches} batches a measure (best of {repeats}), {device}: {where}"
     )
     console.print(f"before: {load()}")
 
     n = batches * BATCH
-    s, m = train_split(n)
+    s, m = train_split(n, device)
     warm = (s[: 20 * BATCH + 1], m[: 20 * BATCH + 1])
-    table = Table(title="Training throughput (samples/s; wall clock unless marked)")
+    table = Table(title=f"Training throughput on {device} (samples/s; wall clock unless marked)")
     for col in (
         "model",
         "path",
@@ -206,6 +235,15 @@ def main() -> None:
     rec_n = max(batches, 200) * BATCH  # at least 10 chunks of 20 steps in every stream
     warm_n = 2 * HORIZON * BATCH
     for kind in ("rec-s", "rec-sm"):
+        if device == "cuda":  # nn.LSTM runs cuDNN; the stacked LSTM is for the CPU
+            plain, cpu = bench_rec(kind, 0, rec_n, warm_n, 1, repeats, device=device)
+            row(kind, "plain loop (nn.LSTM, cuDNN)", plain, plain, cpu, plain)
+            for workers in (2, 4):
+                total, cpu = bench_rec(kind, 0, rec_n, warm_n, workers, repeats, device=device)
+                path = f"{workers} processes, plain loop"
+                row(kind, path, total / workers, total, cpu, plain, f"{total / plain:.2f}x one")
+            console.print(f"  {kind} done ({load()})")
+            continue
         plain, cpu = bench_rec(kind, 0, rec_n, warm_n, 1, repeats, keep=False)
         row(kind, "plain loop (nn.LSTM), glibc default", plain, plain, cpu, plain)
         total, cpu = bench_rec(kind, 0, rec_n, warm_n, 1, repeats)
