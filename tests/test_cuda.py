@@ -10,6 +10,7 @@ import warnings
 import pytest
 import torch
 
+from sensorimotor import cuda_graphs
 from sensorimotor.data import load_database
 from sensorimotor.evaluate import load_run, model_error, split_tensors
 from sensorimotor.models import build_model
@@ -87,6 +88,7 @@ def test_no_host_synchronisation_per_step(square_db_path):
         train_epoch_recurrent(rec, rec_opt, s, m, 64, 5)
 
     for epoch in (stacked, plain, recurrent):
+        epoch(*short)  # CUDA graphs are captured here, once
         few, many = _syncs(lambda e=epoch: e(*short)), _syncs(lambda e=epoch: e(s, m))
         assert 0 < few == many, (epoch.__name__, few, many)  # 0: the count would prove nothing
 
@@ -119,3 +121,35 @@ def test_runs_trained_on_cuda_evaluate_on_the_cpu(kind, square_db_path, tmp_path
         run = load_run(tmp_path / f"square__{kind}__s{seed}")
         assert next(run.model.parameters()).device.type == "cpu"
         assert model_error(run.model, vs, vm) == pytest.approx(result.best_val_error, rel=1e-4)
+
+
+def _two_epochs(kind, s, m, graphs: bool, monkeypatch):
+    """Weights and Adam moments after two epochs of 3 seeds of ``kind`` on CUDA, with or
+    without CUDA graphs, and each epoch's training errors."""
+    monkeypatch.setattr(cuda_graphs, "ENABLED", graphs)
+    seeds = [0, 1, 2]
+    errors = []
+    if kind.startswith("rec"):
+        model = build_model(kind, seed=0).cuda()
+        opt = FusedAdam(model.parameters())
+        for _ in range(2):
+            errors.append(train_epoch_recurrent(model, opt, s, m, 64, 20))
+        return [p.detach() for p in model.parameters()] + opt.exp_avg_sq, errors
+    net = StackedEncoders.from_models([build_model(kind, seed=sd).cuda() for sd in seeds])
+    for epoch in range(2):
+        errors.append(train_epoch_stacked(net, s, m, seeds, epoch, 64).tolist())
+    return net.params + net.exp_avg_sq, errors
+
+
+@pytest.mark.parametrize("kind", ["sm", "rec-sm"])
+def test_cuda_graphs_train_as_the_eager_loop(kind, square_db_path, monkeypatch):
+    """Replayed graphs run the eager loop's kernels: the same weights, moments and errors, bit
+    for bit, over epochs that end with what the graphs leave to the eager loop (a partial
+    group of batches; stream ends padded in the last chunks)."""
+    n = 64 * 32 * 3 + 64 * 5 + 17 if kind == "sm" else 64 * 20 * 7 + 30
+    s, m = _split(square_db_path, "cuda", n)
+    graphed, errors_graphed = _two_epochs(kind, s, m, True, monkeypatch)
+    eager, errors_eager = _two_epochs(kind, s, m, False, monkeypatch)
+    assert errors_graphed == errors_eager
+    for a, b in zip(graphed, eager, strict=True):
+        assert torch.equal(a, b)

@@ -39,6 +39,7 @@ from pathlib import Path
 
 import torch
 
+from sensorimotor import cuda_graphs
 from sensorimotor import train as train_mod
 from sensorimotor.data import load_database
 from sensorimotor.errors import InputError
@@ -207,6 +208,7 @@ class StackedEncoders:
     def _prepare(self) -> None:
         """Gradient buffers, the weight views of each product, and Adam's tensor lists."""
         self.grads = [torch.empty_like(p) for p in self.params]
+        self.graphs: dict = {}  # CUDA graphs of steps on these tensors (cuda_graphs)
         # per nn.Linear: weight (K, out, in), bias (K, 1, out)
         self.layers = [(self.params[w], self.params[b]) for w, b in self.linear_index]
         self._adam = [self._adam_lists(t) for t in (self.params, self.grads)]
@@ -398,9 +400,23 @@ def train_epoch_stacked(
     s0, m0, s1 = s[:-1], m[:-1], s[1:]
     motors = net.config.uses_motors
     sq_sum = torch.zeros(net.k, 1, 1, device=s.device)
-    chunk = batch * CHUNK_BATCHES
+    start = 0  # transitions done by CUDA graphs
     with torch.no_grad():
-        for c in range(0, n, chunk):
+        if cuda_graphs.enabled(s):
+            from sensorimotor.cuda_graphs import GRAPH_BATCHES, run_stacked, stacked_steps
+
+            steps = stacked_steps(net, batch)
+            sq_sum = steps.sq_sum.zero_()
+            rows = GRAPH_BATCHES * batch
+            for start in range(0, n - rows + 1, rows):
+                idx = order[:, start : start + rows].reshape(-1)  # (K rows)
+                for buf, src in ((steps.x, s0), (steps.xm, m0), (steps.y, s1)):
+                    if buf is not None:
+                        torch.index_select(src, 0, idx, out=buf.view(-1, buf.shape[-1]))
+                run_stacked(steps, net)
+            start = n // rows * rows
+        chunk = batch * CHUNK_BATCHES
+        for c in range(start, n, chunk):
             idx = order[:, c : c + chunk]  # (K, c)
             size, pad = idx.shape[1], -idx.shape[1] % ALIGN_ROWS
             if pad:  # each seed's rows start on a 64-byte boundary, as they do alone
