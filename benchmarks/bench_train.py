@@ -1,4 +1,4 @@
-"""Benchmark of training throughput at batch 64 on the CPU, one torch thread per process.
+"""Benchmark of training throughput at batch 64 on the CPU (or a GPU), one torch thread per process.
 
 For S and SM: the plain eager loop (``train.train_epoch_feedforward``: nn.Module, autograd,
 ``train.FusedAdam``) beside the stacked path (``stacked.train_epoch_stacked``) with K = 1, 5
@@ -14,6 +14,10 @@ The data are a generated Square database. Each measurement is the best of a few 
 fixed number of batches after a warm-up. Wall-clock numbers move with the machine's load,
 printed above and below the table; the cpu-time column (this process's own CPU seconds) moves
 less. Run by hand: ``.venv/bin/python benchmarks/bench_train.py [--quick]``.
+
+``--device cuda`` measures the same loops with the data on the GPU, as training runs them
+there (CUDA graphs, ``cuda_graphs``): S and SM as above, Rec-S and Rec-SM through ``nn.LSTM``
+(cuDNN) in 1, 2 and 4 processes; the stacked LSTM is for the CPU and left out.
 """
 
 from __future__ import annotations
@@ -27,7 +31,7 @@ import torch
 from rich.console import Console
 from rich.table import Table
 
-from sensorimotor import __version__
+from sensorimotor import __version__, cuda_graphs
 from sensorimotor.data import generate, scale_motors, scale_sensors
 from sensorimotor.models import build_model
 from sensorimotor.stacked import StackedEncoders, train_epoch_stacked
@@ -93,10 +97,12 @@ def bench_stacked(kind, k, s, m, warm, repeats):
     return timed(lambda i: train_epoch_stacked(net, s, m, seeds, i, BATCH), repeats, s.device)
 
 
-def _rec_worker(kind, k, n, warm_n, keep, barrier, results, device="cpu"):
-    """One of the parallel processes, one thread: ``k`` = 0 the plain loop (nn.LSTM), else a
-    stack of ``k`` seeds (``stacked_lstm``); timed from a start common to all processes."""
+def _rec_worker(kind, k, n, warm_n, keep, barrier, results, device="cpu", graphs=True):
+    """One of the parallel processes, one thread: ``k`` = 0 the plain loop (nn.LSTM; on CUDA
+    replayed as graphs unless ``graphs`` is False), else a stack of ``k`` seeds
+    (``stacked_lstm``); timed from a start common to all processes."""
     torch.set_num_threads(1)
+    cuda_graphs.ENABLED = graphs
     if keep:
         keep_freed_memory()
     s, m = train_split(n, device)
@@ -123,7 +129,15 @@ def _rec_worker(kind, k, n, warm_n, keep, barrier, results, device="cpu"):
 
 
 def bench_rec(
-    kind, k, n, warm_n, workers: int, repeats: int, keep: bool = True, device: str = "cpu"
+    kind,
+    k,
+    n,
+    warm_n,
+    workers: int,
+    repeats: int,
+    keep: bool = True,
+    device: str = "cpu",
+    graphs: bool = True,
 ):
     """Total samples/s (wall, cpu) of ``workers`` spawned processes training at once, each a
     stack of ``k`` seeds (0: the plain loop); ``keep``: with ``train.keep_freed_memory``, as
@@ -134,7 +148,8 @@ def bench_rec(
         barrier, results = ctx.Barrier(workers), ctx.Queue()
         procs = [
             ctx.Process(
-                target=_rec_worker, args=(kind, k, n, warm_n, keep, barrier, results, device)
+                target=_rec_worker,
+                args=(kind, k, n, warm_n, keep, barrier, results, device, graphs),
             )
             for _ in range(workers)
         ]
@@ -236,12 +251,15 @@ def main() -> None:
     warm_n = 2 * HORIZON * BATCH
     for kind in ("rec-s", "rec-sm"):
         if device == "cuda":  # nn.LSTM runs cuDNN; the stacked LSTM is for the CPU
-            plain, cpu = bench_rec(kind, 0, rec_n, warm_n, 1, repeats, device=device)
-            row(kind, "plain loop (nn.LSTM, cuDNN)", plain, plain, cpu, plain)
-            for workers in (2, 4):
-                total, cpu = bench_rec(kind, 0, rec_n, warm_n, workers, repeats, device=device)
-                path = f"{workers} processes, plain loop"
-                row(kind, path, total / workers, total, cpu, plain, f"{total / plain:.2f}x one")
+            args = (kind, 0, rec_n, warm_n)
+            plain, cpu = bench_rec(*args, 1, repeats, device=device, graphs=False)
+            row(kind, "plain loop (nn.LSTM, cuDNN), eager", plain, plain, cpu, plain)
+            one = None
+            for workers in (1, 2, 4):
+                total, cpu = bench_rec(*args, workers, repeats, device=device)
+                one = one or total
+                path = f"{workers} process{'es' if workers > 1 else ''}, CUDA graphs"
+                row(kind, path, total / workers, total, cpu, plain, f"{total / one:.2f}x one")
             console.print(f"  {kind} done ({load()})")
             continue
         plain, cpu = bench_rec(kind, 0, rec_n, warm_n, 1, repeats, keep=False)

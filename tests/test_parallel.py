@@ -37,3 +37,32 @@ def test_in_process_progress_reaches_the_printer():
     assert results == {"run-a": 1}
     assert not failures
     assert lines == [("run-a", "epoch 0")]
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_follow_up_jobs_run_once_after_the_job_they_need(workers):
+    """``then`` queues jobs behind a finished one: each runs once, with its result, and a
+    failed job has none."""
+    jobs = [Job(f"add{i}", operator.add, (i, 10)) for i in range(3)]
+    jobs.append(Job("bad", math.sqrt, (-1.0,)))
+
+    def then(name, result):
+        if name.startswith("add"):
+            return [Job(f"double-{name}", operator.mul, (result, 2))]
+        return []
+
+    results, failures = run_jobs(jobs, workers, then=then)
+    assert results == {**{f"add{i}": i + 10 for i in range(3)},
+                       **{f"double-add{i}": 2 * (i + 10) for i in range(3)}}  # fmt: skip
+    assert [f.name for f in failures] == ["bad"]
+
+
+def test_a_single_job_with_follow_ups_still_uses_the_workers():
+    """One job whose follow-ups fan out: they run in worker processes, not all in this one."""
+    import os
+
+    def then(name, _):
+        return [Job(f"pid{i}", os.getpid) for i in range(4)] if name == "first" else []
+
+    results, _ = run_jobs([Job("first", os.getpid)], 2, then=then)
+    assert os.getpid() not in results.values()

@@ -69,27 +69,33 @@ def run_jobs(
     on_progress: Callable[[str, str], None] | None = None,
     on_done: Callable[[str, Any], None] | None = None,
     threads: int = 1,
+    then: Callable[[str, Any], list[Job]] | None = None,
 ) -> tuple[dict[str, Any], list[JobFailure]]:
     """Run every job, ``workers`` at a time; returns (results by name, failures).
 
     With ``workers == 1`` the jobs run in this process, in order. A failing job does not stop
-    the others: its exception is returned, for the caller to name.
+    the others: its exception is returned, for the caller to name. ``then(name, result)`` of
+    a job that succeeded gives jobs that need it, queued behind those already there.
     """
     global _progress_queue
     results: dict[str, Any] = {}
     failures: list[JobFailure] = []
-    if workers <= 1 or len(jobs) <= 1:
+    if workers <= 1 or (len(jobs) <= 1 and then is None):
         import torch
 
         before, old_queue = torch.get_num_threads(), _progress_queue
         torch.set_num_threads(threads)
         _progress_queue = _ListQueue(on_progress)
         try:
-            for job in jobs:
+            queue = list(jobs)
+            while queue:
+                job = queue.pop(0)
                 try:
                     results[job.name] = job.fn(*job.args)
                     if on_done is not None:
                         on_done(job.name, results[job.name])
+                    if then is not None:
+                        queue += then(job.name, results[job.name])
                 except Exception as err:
                     failures.append(JobFailure(job.name, err))
         finally:
@@ -114,7 +120,7 @@ def run_jobs(
     printer.start()
     try:
         with ProcessPoolExecutor(
-            max_workers=min(workers, len(jobs)),
+            max_workers=workers if then is not None else min(workers, len(jobs)),
             mp_context=ctx,
             initializer=_init_worker,
             initargs=(progress_queue, threads),
@@ -128,8 +134,11 @@ def run_jobs(
                         results[job.name] = future.result()
                         if on_done is not None:
                             on_done(job.name, results[job.name])
+                        more = [] if then is None else then(job.name, results[job.name])
                     except Exception as err:
                         failures.append(JobFailure(job.name, err))
+                        continue
+                    pending.update({pool.submit(j.fn, *j.args): j for j in more})
     finally:
         stop.set()
         printer.join()

@@ -230,12 +230,18 @@ def write_report(rep, argv: list[str], hardware: dict) -> tuple[Path, Path]:
         if stage == "total":
             continue
         extra = f"{t.get('jobs', 0)} run, {t.get('cached', 0)} cached" if "jobs" in t else ""
+        if t.get("during_training"):
+            extra = f"{t['during_training']} run during training, " + extra
         rows.append([stage, f"{t.get('seconds', 0.0):.1f}", extra])
     rows.append(["report", f"{figure_seconds:.1f}", "figures (writing the files not counted)"])
     total = rep.timings.get("total", {}).get("seconds", 0.0) + figure_seconds
     rows.append(["total", f"{total:.1f}", ""])
     b += [
         h(3, "Wall time of each stage (this invocation)"),
+        p(
+            "Each run is evaluated and analysed as soon as it is trained, in a worker that "
+            "training leaves free: the train stage's time includes that work."
+        ),
         table(["stage", "seconds", "jobs"], rows),
     ]
     rows = []

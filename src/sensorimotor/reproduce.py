@@ -217,6 +217,70 @@ def _raise_failures(failures, log) -> None:
     raise RuntimeError(f"run {first.name} failed{more}") from first.error
 
 
+def _eval_path(rep: Reproduction, name: str) -> Path:
+    return rep.out / "eval" / f"{name}.json"
+
+
+def _eval_job_of(rep: Reproduction, world: str, model: str, seed: int, data_hash) -> Job | None:
+    """The job that evaluates one trained run on every world, or None if its result is kept."""
+    run = rep.run_dir(world, model, seed)
+    path = _eval_path(rep, run.name)
+    key = stage_key({"model": file_hash(run / "model.pt"), "data": data_hash})
+    if _read_key(path) == key:
+        return None
+    data_list = [str(rep.data[w]) for w in WORLDS]
+    return Job(run.name, _eval_job, (str(run), data_list, str(path), key))
+
+
+Target = tuple[str, str, str, str | None, str]  # name, run ("raw" or folder), data, fit, out
+
+
+def _raw_targets(rep: Reproduction, world: str) -> list[Target]:
+    """The analysis of ``world``'s raw readings (the baseline representation)."""
+    dest = rep.out / "analysis" / f"raw__{world}"
+    return [(f"raw__{world}", "raw", str(rep.data[world]), None, str(dest))]
+
+
+def _analysis_targets(rep: Reproduction, world: str, model: str, seed: int) -> list[Target]:
+    """The analyses of one run: of its own world, and for Rec-SM seed 0 trained on a
+    ``TRANSFER_FROM`` world, the transfer to each other world."""
+    run = rep.run_dir(world, model, seed)
+    own = (run.name, str(run), str(rep.data[world]), None, str(rep.out / "analysis" / run.name))
+    targets = [own]
+    if model == "rec-sm" and seed == 0 and world in TRANSFER_FROM:
+        for target in WORLDS:
+            if target != world:
+                name = f"{run.name}__to__{target}"
+                dest = str(rep.out / "transfer" / name)
+                targets.append((name, str(run), str(rep.data[target]), str(rep.data[world]), dest))
+    return targets
+
+
+def _analysis_job_of(target: Target) -> Job | None:
+    """The job of one analysis, or None if its result is kept."""
+    name, run, data, fit, dest = target
+    model_hash = "raw" if run == "raw" else file_hash(Path(run) / "model.pt")
+    key = stage_key(
+        {
+            "model": model_hash,
+            "data": file_hash(data),
+            "fit": None if fit is None else file_hash(fit),
+            "version": __version__,
+        }
+    )
+    metrics_path = Path(dest) / "metrics.json"
+    if metrics_path.exists() and _read_key(Path(dest) / "stage.json") == key:
+        return None
+    return Job(name, _analysis_job, (run, data, dest, fit, key))
+
+
+def _count(rep: Reproduction, stage: str, run: int, kept: int, overlapped: dict) -> None:
+    """A stage's job counts: ``kept`` found done, of which ``overlapped[stage]`` were done
+    during training (the rest by an earlier invocation)."""
+    during = overlapped[stage]
+    rep.timings[stage] = {"jobs": run, "cached": kept - during, "during_training": during}
+
+
 def reproduce(
     out: str | Path,
     scale: str = "quick",
@@ -307,28 +371,50 @@ def reproduce(
         # longest first (Rec-SM trains longest, S shortest): the workers finish closer together
         cost = {"rec-sm": 0, "rec-s": 1, "sm": 2, "s": 3}
         jobs.sort(key=lambda job: cost[job.name.split("__")[1]])
+        n_jobs = len(jobs)
         rep.timings["train"] = {"jobs": n_train, "cached": len(rep.runs) - n_train}
         log(
             f"  {n_train} trainings to run in {len(jobs)} jobs "
             f"({'seeds' if trains_stacked('rec-sm', device) else 'S and SM seeds'} stacked), "
             f"{len(rep.runs) - n_train} cached, {workers} worker(s)"
         )
-        _, failures = run_jobs(jobs, workers, progress)
+        overlapped = {"evaluate": 0, "analyze": 0}
+
+        training = {job.name for job in jobs}
+
+        def then(name: str, _result) -> list[Job]:
+            """Evaluate and analyse each run a training job finished, while others train."""
+            if name not in training:  # a follow-up (which may share its run's name)
+                return []
+            training.discard(name)
+            world, model, seeds_done = name.split("__")
+            more = []
+            for seed in map(int, seeds_done[1:].split(",")):
+                job = _eval_job_of(rep, world, model, seed, data_hash)
+                more += [] if job is None else [job]
+                for target in _analysis_targets(rep, world, model, seed):
+                    more += [j for j in [_analysis_job_of(target)] if j is not None]
+            overlapped["evaluate"] += sum(job.fn is _eval_job for job in more)
+            overlapped["analyze"] += sum(job.fn is _analysis_job for job in more)
+            return more
+
+        raw = [_analysis_job_of(tg) for world in WORLDS for tg in _raw_targets(rep, world)]
+        jobs += [job for job in raw if job is not None]  # cheap: they fill the end
+        overlapped["analyze"] += len(jobs) - n_jobs
+        _, failures = run_jobs(jobs, workers, progress, then=then)
         _raise_failures(failures, log)
 
     # evaluate -----------------------------------------------------------------------------
     with _stage(rep, "evaluate", log):
         jobs, results = [], {}
-        data_list = [str(rep.data[w]) for w in WORLDS]
         for world, model, seed in rep.runs:
-            run = rep.run_dir(world, model, seed)
-            path = out / "eval" / f"{run.name}.json"
-            key = stage_key({"model": file_hash(run / "model.pt"), "data": data_hash})
-            if _read_key(path) == key:
-                results[run.name] = json.loads(path.read_text())["result"]
-                continue
-            jobs.append(Job(run.name, _eval_job, (str(run), data_list, str(path), key)))
-        rep.timings["evaluate"] = {"jobs": len(jobs), "cached": len(rep.runs) - len(jobs)}
+            name = rep.run_name(world, model, seed)
+            job = _eval_job_of(rep, world, model, seed, data_hash)
+            if job is None:
+                results[name] = json.loads(_eval_path(rep, name).read_text())["result"]
+            else:
+                jobs.append(job)
+        _count(rep, "evaluate", len(jobs), len(rep.runs) - len(jobs), overlapped)
         new, failures = run_jobs(jobs, workers, progress)
         _raise_failures(failures, log)
         results.update(new)
@@ -343,53 +429,10 @@ def reproduce(
 
     # analyze ------------------------------------------------------------------------------
     with _stage(rep, "analyze", log):
-        jobs, cached = [], 0
-        targets: list[tuple[str, str, str, str | None, str]] = []  # name, run, data, fit, out
-        for world in WORLDS:
-            targets.append(
-                (
-                    f"raw__{world}",
-                    "raw",
-                    str(rep.data[world]),
-                    None,
-                    str(out / "analysis" / f"raw__{world}"),
-                )
-            )
-        for world, model, seed in rep.runs:
-            run = rep.run_dir(world, model, seed)
-            targets.append(
-                (run.name, str(run), str(rep.data[world]), None, str(out / "analysis" / run.name))
-            )
-        for world in TRANSFER_FROM:
-            run = rep.run_dir(world, "rec-sm", 0)
-            for target in WORLDS:
-                if target != world:
-                    name = f"{run.name}__to__{target}"
-                    targets.append(
-                        (
-                            name,
-                            str(run),
-                            str(rep.data[target]),
-                            str(rep.data[world]),
-                            str(out / "transfer" / name),
-                        )
-                    )
-        for name, run, data, fit, dest in targets:
-            model_hash = "raw" if run == "raw" else file_hash(Path(run) / "model.pt")
-            key = stage_key(
-                {
-                    "model": model_hash,
-                    "data": file_hash(data),
-                    "fit": None if fit is None else file_hash(fit),
-                    "version": __version__,
-                }
-            )
-            metrics_path = Path(dest) / "metrics.json"
-            if metrics_path.exists() and _read_key(Path(dest) / "stage.json") == key:
-                cached += 1
-                continue
-            jobs.append(Job(name, _analysis_job, (run, data, dest, fit, key)))
-        rep.timings["analyze"] = {"jobs": len(jobs), "cached": cached}
+        targets = [tg for world in WORLDS for tg in _raw_targets(rep, world)]
+        targets += [tg for run in rep.runs for tg in _analysis_targets(rep, *run)]
+        jobs = [job for job in map(_analysis_job_of, targets) if job is not None]
+        _count(rep, "analyze", len(jobs), len(targets) - len(jobs), overlapped)
         _, failures = run_jobs(jobs, workers, progress)
         _raise_failures(failures, log)
         for name, _run, _data, fit, dest in targets:
