@@ -256,15 +256,16 @@ def _analysis_targets(rep: Reproduction, world: str, model: str, seed: int) -> l
     return targets
 
 
-def _analysis_job_of(target: Target) -> Job | None:
-    """The job of one analysis, or None if its result is kept."""
+def _analysis_job_of(target: Target, path_hash: dict[str, str]) -> Job | None:
+    """The job of one analysis, or None if its result is kept. ``path_hash``: each database's
+    hash by its path, computed once (a database is tens of MB to read again)."""
     name, run, data, fit, dest = target
     model_hash = "raw" if run == "raw" else file_hash(Path(run) / "model.pt")
     key = stage_key(
         {
             "model": model_hash,
-            "data": file_hash(data),
-            "fit": None if fit is None else file_hash(fit),
+            "data": path_hash[data],
+            "fit": None if fit is None else path_hash[fit],
             "version": __version__,
         }
     )
@@ -330,12 +331,14 @@ def reproduce(
         _, failures = run_jobs(jobs, workers, progress)
         _raise_failures(failures, log)
     data_hash = {w: file_hash(p) for w, p in rep.data.items()}
+    path_hash = {str(rep.data[w]): h for w, h in data_hash.items()}
 
     # train --------------------------------------------------------------------------------
     with _stage(rep, "train", log):
         from sensorimotor.stacked import trains_stacked
 
         jobs, n_train = [], 0
+        trains: dict[str, list[tuple[str, str, int]]] = {}  # job name -> the runs it trains
         for world in WORLDS:
             for model in MODEL_KINDS:
                 stack = []  # seeds that need training: one stacked job
@@ -358,6 +361,7 @@ def reproduce(
                         continue
                     args = (str(rep.data[world]), str(run), config, data_hash[world])
                     jobs.append(Job(run.name, _train_job, args))
+                    trains[run.name] = [(world, model, seed)]
                 if stack:
                     config = {
                         "model": model,
@@ -368,6 +372,7 @@ def reproduce(
                     name = f"{world}__{model}__s" + ",".join(str(sd) for sd, _ in stack)
                     args = (str(rep.data[world]), stack, config, data_hash[world])
                     jobs.append(Job(name, _train_stack_job, args))
+                    trains[name] = [(world, model, sd) for sd, _ in stack]
         # longest first (Rec-SM trains longest, S shortest): the workers finish closer together
         cost = {"rec-sm": 0, "rec-s": 1, "sm": 2, "s": 3}
         jobs.sort(key=lambda job: cost[job.name.split("__")[1]])
@@ -380,25 +385,19 @@ def reproduce(
         )
         overlapped = {"evaluate": 0, "analyze": 0}
 
-        training = {job.name for job in jobs}
-
         def then(name: str, _result) -> list[Job]:
             """Evaluate and analyse each run a training job finished, while others train."""
-            if name not in training:  # a follow-up (which may share its run's name)
-                return []
-            training.discard(name)
-            world, model, seeds_done = name.split("__")
             more = []
-            for seed in map(int, seeds_done[1:].split(",")):
-                job = _eval_job_of(rep, world, model, seed, data_hash)
-                more += [] if job is None else [job]
-                for target in _analysis_targets(rep, world, model, seed):
-                    more += [j for j in [_analysis_job_of(target)] if j is not None]
+            for world, model, seed in trains.pop(name, []):  # [] for a follow-up job
+                more.append(_eval_job_of(rep, world, model, seed, data_hash))
+                targets = _analysis_targets(rep, world, model, seed)
+                more += [_analysis_job_of(tg, path_hash) for tg in targets]
+            more = [job for job in more if job is not None]
             overlapped["evaluate"] += sum(job.fn is _eval_job for job in more)
             overlapped["analyze"] += sum(job.fn is _analysis_job for job in more)
             return more
 
-        raw = [_analysis_job_of(tg) for world in WORLDS for tg in _raw_targets(rep, world)]
+        raw = [_analysis_job_of(tg, path_hash) for w in WORLDS for tg in _raw_targets(rep, w)]
         jobs += [job for job in raw if job is not None]  # cheap: they fill the end
         overlapped["analyze"] += len(jobs) - n_jobs
         _, failures = run_jobs(jobs, workers, progress, then=then)
@@ -431,7 +430,8 @@ def reproduce(
     with _stage(rep, "analyze", log):
         targets = [tg for world in WORLDS for tg in _raw_targets(rep, world)]
         targets += [tg for run in rep.runs for tg in _analysis_targets(rep, *run)]
-        jobs = [job for job in map(_analysis_job_of, targets) if job is not None]
+        jobs = [_analysis_job_of(tg, path_hash) for tg in targets]
+        jobs = [job for job in jobs if job is not None]
         _count(rep, "analyze", len(jobs), len(targets) - len(jobs), overlapped)
         _, failures = run_jobs(jobs, workers, progress)
         _raise_failures(failures, log)

@@ -403,17 +403,15 @@ def train_epoch_stacked(
     start = 0  # transitions done by CUDA graphs
     with torch.no_grad():
         if cuda_graphs.enabled(s):
-            from sensorimotor.cuda_graphs import GRAPH_BATCHES, run_stacked, stacked_steps
-
-            steps = stacked_steps(net, batch)
+            steps = cuda_graphs.stacked_steps(net, batch)
             sq_sum = steps.sq_sum.zero_()
-            rows = GRAPH_BATCHES * batch
+            rows = cuda_graphs.GRAPH_BATCHES * batch
             for start in range(0, n - rows + 1, rows):
                 idx = order[:, start : start + rows].reshape(-1)  # (K rows)
                 for buf, src in ((steps.x, s0), (steps.xm, m0), (steps.y, s1)):
                     if buf is not None:
                         torch.index_select(src, 0, idx, out=buf.view(-1, buf.shape[-1]))
-                run_stacked(steps, net)
+                cuda_graphs.run_stacked(steps, net)
             start = n // rows * rows
         chunk = batch * CHUNK_BATCHES
         for c in range(start, n, chunk):

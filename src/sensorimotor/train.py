@@ -101,16 +101,14 @@ def train_epoch_recurrent(model, opt, s, m, streams: int, horizon: int) -> float
     total = torch.zeros((), device=s.device)
     state = None
     if graphed:
-        from sensorimotor.cuda_graphs import recurrent_step, run_recurrent
-
-        step = recurrent_step(model, opt, streams, horizon)
+        step = cuda_graphs.recurrent_step(model, opt, streams, horizon)
         step.h.zero_()
         step.c.zero_()
         total = step.total.zero_()
         for j in range(0, graphed, horizon):
             for buf, src in ((step.x, xs), (step.xm, xm), (step.y, y)):
                 buf.copy_(src[:, j : j + horizon])
-            run_recurrent(step, model, opt)
+            cuda_graphs.run_recurrent(step, model, opt)
         state = (step.h.clone(), step.c.clone())
     for j in range(graphed, index.shape[1], horizon):
         pred, _, state = model(xs[:, j : j + horizon], xm[:, j : j + horizon], state)
