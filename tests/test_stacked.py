@@ -13,9 +13,16 @@ import torch
 import sensorimotor.train as train_mod
 from conftest import assert_one_line_error
 from sensorimotor.data import load_database
+from sensorimotor.errors import InputError
 from sensorimotor.evaluate import load_run, model_error, split_tensors
 from sensorimotor.models import build_model
-from sensorimotor.stacked import StackedEncoders, run_name, train_epoch_stacked, train_seeds
+from sensorimotor.stacked import (
+    StackedEncoders,
+    run_name,
+    train_epoch_stacked,
+    train_runs,
+    train_seeds,
+)
 from sensorimotor.train import (
     FusedAdam,
     TrainConfig,
@@ -151,6 +158,44 @@ def test_each_stacked_seed_is_its_solo_run_down_to_early_stopping(kind, square_d
         assert _equal(solo_ckpt["model"], ckpt["model"])
         stops.add(result.epochs)
     assert len(stops) > 1, "the seeds should stop at different epochs for this test to bite"
+
+
+def test_a_stack_across_databases_trains_each_seed_as_alone(
+    square_db_path, rooms1_db_path, tmp_path
+):
+    # seed 0 on both worlds (same data order, other data) and seed 1 on Square, in one stack
+    config = TrainConfig(model="sm", patience=1, min_ratio=0.9, max_epochs=6)
+    runs = [
+        (square_db_path, 0, tmp_path / "a"),
+        (rooms1_db_path, 0, tmp_path / "b"),
+        (square_db_path, 1, tmp_path / "c"),
+    ]
+    results = train_runs([d for d, _, _ in runs], [(sd, out) for _, sd, out in runs], config)
+    assert results[0].history[0].val_error != results[1].history[0].val_error
+    for (data, seed, out), result in zip(runs, results, strict=True):
+        (solo,) = train_runs(data, [(seed, out.with_name(out.name + "_solo"))], config)
+        assert [r.val_error for r in solo.history] == [r.val_error for r in result.history]
+        assert solo.epochs == result.epochs
+        mine, alone = (torch.load(d / "model.pt", weights_only=True) for d in (out, solo.run_dir))
+        assert _equal(mine, alone)
+        made = json.loads((out / "config.json").read_text())
+        assert made["data"]["path"] == str(data)
+    assert len({r.epochs for r in results}) > 1, "seeds should stop apart for this to bite"
+
+
+def test_a_stack_refuses_databases_of_other_sizes_and_recurrent_models(square_db_path, tmp_path):
+    from sensorimotor.data import generate, save_database
+    from sensorimotor.world import load_world
+
+    small = tmp_path / "small.npz"
+    save_database(generate(load_world("square"), 10_000, seed=0), small)
+    runs = [(0, tmp_path / "a"), (0, tmp_path / "b")]
+    with pytest.raises(ValueError, match="one length"):
+        train_runs([square_db_path, small], runs, TrainConfig(model="s", max_epochs=1))
+    with pytest.raises(ValueError, match="one database"):
+        train_runs([square_db_path, small], runs, TrainConfig(model="rec-s", max_epochs=1))
+    with pytest.raises(InputError, match="twice"):
+        train_runs(square_db_path, runs, TrainConfig(model="s", max_epochs=1))
 
 
 def test_stacked_run_folders_are_single_seed_run_folders(square_db_path, tmp_path):

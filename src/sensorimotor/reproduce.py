@@ -96,6 +96,23 @@ def run_matches(run: Path, data_sha: str, config: dict) -> bool:
     return made.get("data", {}).get("sha256") == data_sha and made.get("train") == want
 
 
+def _stack_name(model: str, runs: list[tuple[str, int]]) -> str:
+    """A stacked job's name: ``square+rooms1__sm__s0,1`` where every world has those seeds."""
+    seeds: dict[str, list[str]] = {}
+    for world, seed in runs:
+        seeds.setdefault(world, []).append(str(seed))
+    if len({tuple(s) for s in seeds.values()}) == 1:
+        return f"{'+'.join(seeds)}__{model}__s{','.join(next(iter(seeds.values())))}"
+    return "+".join(f"{world}__{model}__s{','.join(s)}" for world, s in seeds.items())
+
+
+def _train_config(sc: Scale, model: str, device: str, seed: int | None = None) -> dict:
+    """The training configuration of one run (of a stack's runs without ``seed``)."""
+    config = {"model": model, "device": device, "max_epochs": sc.max_epochs.get(model)}
+    config["patience"] = sc.patience
+    return config if seed is None else {**config, "seed": seed}
+
+
 def _train_job(data: str, run_dir: str, config: dict, data_sha: str) -> dict:
     from sensorimotor.data import load_database
     from sensorimotor.train import TrainConfig, train
@@ -121,34 +138,42 @@ def _train_job(data: str, run_dir: str, config: dict, data_sha: str) -> dict:
     return {"epochs": result.epochs, "best_val_error": result.best_val_error}
 
 
-def _train_stack_job(data: str, runs: list[tuple[int, str]], config: dict, data_sha: str) -> dict:
-    """Several seeds of one model in one process, stacked (``stacked.train_runs``)."""
+def _train_stack_job(runs: list[tuple[str, int, str, str]], config: dict) -> dict:
+    """Several seeds of one model in one process, stacked (``stacked.train_runs``); each run
+    ``(data, seed, run folder, data hash)``, feed-forward ones from several worlds at once."""
     from sensorimotor.data import load_database
     from sensorimotor.stacked import train_runs
     from sensorimotor.train import TrainConfig
 
-    load_database(data)  # bad data fails here, before a stale run folder is cleared
-    for seed, run_dir in runs:
+    for data in dict.fromkeys(data for data, _, _, _ in runs):
+        load_database(data)  # bad data fails here, before a stale run folder is cleared
+    for _, seed, run_dir, data_sha in runs:
         run = Path(run_dir)
         if run.exists() and not run_matches(run, data_sha, {**config, "seed": seed}):
             shutil.rmtree(run)
-    names = {seed: Path(run_dir).name for seed, run_dir in runs}
+    names = [Path(run_dir).name for _, _, run_dir, _ in runs]
 
-    def on_epoch(seed, r, stopper) -> None:
+    def on_epoch(i, r, stopper) -> None:
         report(
-            names[seed],
+            names[i],
             f"epoch {r.epoch:3d} val {r.val_error:.5f} (best {stopper.lowest:.5f}) "
             f"{r.samples_per_s / 1e3:.0f} k samples/s (stack of {len(runs)})",
         )
 
-    results = train_runs(data, runs, TrainConfig(**config, seed=0), resume=True, on_epoch=on_epoch)
-    for (seed, _), result in zip(runs, results, strict=True):
+    results = train_runs(
+        [data for data, _, _, _ in runs],
+        [(seed, run_dir) for _, seed, run_dir, _ in runs],
+        TrainConfig(**config, seed=0),
+        resume=True,
+        on_epoch=on_epoch,
+    )
+    for name, result in zip(names, results, strict=True):
         report(
-            names[seed],
+            name,
             f"done: {result.stopped} after {result.epochs} epochs, best val "
             f"{result.best_val_error:.5f}",
         )
-    return {names[seed]: r.best_val_error for (seed, _), r in zip(runs, results, strict=True)}
+    return {name: r.best_val_error for name, r in zip(names, results, strict=True)}
 
 
 def _eval_job(run_dir: str, data: list[str], out: str, key: str) -> dict:
@@ -339,40 +364,31 @@ def reproduce(
 
         jobs, n_train = [], 0
         trains: dict[str, list[tuple[str, str, int]]] = {}  # job name -> the runs it trains
+        stacks: dict[tuple, list] = {}  # (model,) or (model, world) -> runs of one stacked job
         for world in WORLDS:
             for model in MODEL_KINDS:
-                stack = []  # seeds that need training: one stacked job
                 for seed in range(seeds):
                     rep.runs.append((world, model, seed))
-                    config = {
-                        "model": model,
-                        "seed": seed,
-                        "device": device,
-                        "max_epochs": sc.max_epochs.get(model),
-                        "patience": sc.patience,
-                    }
+                    config = _train_config(sc, model, device, seed)
                     run = rep.run_dir(world, model, seed)
                     done = (run / "result.json").exists()
                     if done and run_matches(run, data_hash[world], config):
                         continue
                     n_train += 1
                     if trains_stacked(model, device):
-                        stack.append((seed, str(run)))
+                        # a recurrent stack shares its batches: one world; S and SM: all
+                        key = (model, world) if model.startswith("rec") else (model,)
+                        entry = (str(rep.data[world]), seed, str(run), data_hash[world])
+                        stacks.setdefault(key, []).append((world, entry))
                         continue
                     args = (str(rep.data[world]), str(run), config, data_hash[world])
                     jobs.append(Job(run.name, _train_job, args))
                     trains[run.name] = [(world, model, seed)]
-                if stack:
-                    config = {
-                        "model": model,
-                        "device": device,
-                        "max_epochs": sc.max_epochs.get(model),
-                        "patience": sc.patience,
-                    }
-                    name = f"{world}__{model}__s" + ",".join(str(sd) for sd, _ in stack)
-                    args = (str(rep.data[world]), stack, config, data_hash[world])
-                    jobs.append(Job(name, _train_stack_job, args))
-                    trains[name] = [(world, model, sd) for sd, _ in stack]
+        for (model, *_), stack in stacks.items():
+            name = _stack_name(model, [(world, sd) for world, (_, sd, _, _) in stack])
+            config = _train_config(sc, model, device)
+            jobs.append(Job(name, _train_stack_job, ([e for _, e in stack], config)))
+            trains[name] = [(world, model, sd) for world, (_, sd, _, _) in stack]
         # longest first (Rec-SM trains longest, S shortest): the workers finish closer together
         cost = {"rec-sm": 0, "rec-s": 1, "sm": 2, "s": 3}
         jobs.sort(key=lambda job: cost[job.name.split("__")[1]])

@@ -72,7 +72,8 @@ ALIGN_ROWS = 16  # gathered rows padded to a multiple of this: 64-byte aligned s
 ADAM_VECTOR = 16  # floats per SIMD vector, at most (AVX-512); see StackedEncoders._adam_lists
 NARROW = 16  # a product with fewer columns than this runs as its transpose (see matmul)
 
-OnEpoch = Callable[[int, EpochRecord, EarlyStopping], None]  # (seed, record, stopper)
+# (which run: its seed for train_seeds, its index in runs for train_runs; record, stopper)
+OnEpoch = Callable[[int, EpochRecord, EarlyStopping], None]
 
 
 def check_seeds(seeds: Sequence[int]) -> list[int]:
@@ -386,18 +387,27 @@ def train_epoch_stacked(
     seeds: Sequence[int],
     epoch: int,
     batch: int,
+    splits: Sequence[int] | None = None,
 ) -> torch.Tensor:
     """One epoch of every seed of ``net`` over its own shuffled transitions.
 
     s (n + 1, 5), m (n + 1, 2): the train split; row k of the stack is seed ``seeds[k]``.
-    Each seed's transitions are gathered once per chunk of batches, so a batch is a view.
-    Returns each seed's mean training error (K,), on the device (no host synchronisation).
+    Or s (W, n + 1, 5), m (W, n + 1, 2): W train splits of one length (W databases), seed k
+    training on split ``splits[k]``. Each seed's transitions are gathered once per chunk of
+    batches, so a batch is a view. Returns each seed's mean training error (K,), on the device
+    (no host synchronisation).
     """
-    n = len(s) - 1
     if net.k != len(seeds):
         raise ValueError(f"{len(seeds)} seeds for a stack of {net.k}")
+    n = s.shape[-2] - 1
     order = epoch_orders(n, seeds, epoch).to(s.device)  # (K, n)
-    s0, m0, s1 = s[:-1], m[:-1], s[1:]
+    if s.dim() == 3:  # one tensor of all splits; a seed's rows start where its split does
+        if splits is None or len(splits) != net.k:
+            raise ValueError("several train splits need one split index per seed")
+        start = torch.tensor(list(splits), device=s.device) * (n + 1)
+        order += start[:, None]
+        s, m = s.reshape(-1, s.shape[-1]), m.reshape(-1, m.shape[-1])
+    s0, m0, s1 = s[:-1], m[:-1], s[1:]  # a transition never crosses two splits
     motors = net.config.uses_motors
     sq_sum = torch.zeros(net.k, 1, 1, device=s.device)
     start = 0  # transitions done by CUDA graphs
@@ -435,8 +445,10 @@ def train_epoch_stacked(
 class _Run:
     """One seed's run folder and where its training stands."""
 
+    index: int  # in train_runs' runs
     seed: int
     out: Path
+    split: int  # which database (train_runs' data) it trains on
     model: SensorimotorEncoder  # scratch copy: validation and saving
     stopper: EarlyStopping
     history: list[EpochRecord] = field(default_factory=list)
@@ -446,7 +458,7 @@ class _Run:
 
 
 def train_runs(
-    data: str | Path,
+    data: str | Path | Sequence[str | Path],
     runs: Sequence[tuple[int, str | Path]],
     config: TrainConfig,
     resume: bool = False,
@@ -454,12 +466,19 @@ def train_runs(
 ) -> list[TrainResult]:
     """Train one model per ``(seed, run folder)`` in ``runs``, all seeds in one stack.
 
-    Every run folder is what ``train.train(data, out, replace(config, seed=seed))`` writes;
-    ``config.seed`` is not used. With ``resume``, each run continues from its checkpoint;
-    seeds left at different epochs (a kill between two seeds' checkpoints) train in separate
-    stacks, the lagging one first, and merge once they have caught up.
+    ``data``: one database for every run, or one per run (S and SM: the stack then spans
+    databases, e.g. worlds, of one size). Every run folder is what ``train.train(data, out,
+    replace(config, seed=seed))`` writes; ``config.seed`` is not used. With ``resume``, each run
+    continues from its checkpoint; seeds left at different epochs (a kill between two seeds'
+    checkpoints) train in separate stacks, the lagging one first, and merge once caught up.
     """
-    data = Path(data)
+    if isinstance(data, (str, Path)):
+        data = [data] * len(runs)
+    paths = [Path(d) for d in data]
+    if len(paths) != len(runs):
+        raise ValueError(f"{len(paths)} databases for {len(runs)} runs")
+    files = list(dict.fromkeys(paths))  # each database once, in order
+    split_of = [files.index(p) for p in paths]
     device = resolve_device(config.device)
     config = replace(config, device=device)
     model_config = ModelConfig(kind=config.model)
@@ -467,17 +486,24 @@ def train_runs(
         raise ValueError(
             "the stacked LSTM is CPU only: train recurrent models on CUDA with train.train"
         )
-    seeds = check_seeds([seed for seed, _ in runs])
+    if model_config.recurrent and len(files) > 1:
+        raise ValueError("a recurrent stack trains on one database")
+    seeds = [int(seed) for seed, _ in runs]
+    for f in files or [None]:  # at least one seed, and distinct ones on each database
+        check_seeds([sd for sd, p in zip(seeds, paths, strict=True) if p == f])
     outs = [Path(out) for _, out in runs]
     if len(set(outs)) != len(outs):
         raise ValueError("two runs share a run folder")
-    db = load_database(data)
-    check_trainable(db, config)
-    sha = None
+    dbs = [load_database(f) for f in files]
+    for db in dbs:
+        check_trainable(db, config)
+    if len({len(db.take("train")) for db in dbs}) > 1:
+        raise ValueError("databases of a stack must have train splits of one length")
+    sha: dict[int, str] = {}
     metas = []
-    for seed, out in zip(seeds, outs, strict=True):
-        meta = run_meta(data, db, replace(config, seed=seed), sha)
-        sha = meta["data"]["sha256"]
+    for seed, out, w in zip(seeds, outs, split_of, strict=True):
+        meta = run_meta(files[w], dbs[w], replace(config, seed=seed), sha.get(w))
+        sha[w] = meta["data"]["sha256"]
         check_run_dir(out, meta, resume)  # every folder checked before any is written
         metas.append(meta)
     for out, meta in zip(outs, metas, strict=True):
@@ -487,10 +513,10 @@ def train_runs(
     train_mod.keep_freed_memory()
     state: list[_Run] = []
     opts: list[FusedAdam] = []
-    for seed, out in zip(seeds, outs, strict=True):
+    for i, (seed, out, w) in enumerate(zip(seeds, outs, split_of, strict=True)):
         model = build_model(model_config, seed=seed).to(device)
         opt = FusedAdam(model.parameters(), lr=config.lr)
-        run = _Run(seed, out, model, EarlyStopping(config.patience, config.min_ratio))
+        run = _Run(i, seed, out, w, model, EarlyStopping(config.patience, config.min_ratio))
         if resume and (out / "checkpoint.pt").exists():
             run.stopper, run.history, run.epoch, run.elapsed = load_checkpoint(
                 out, device, model, opt
@@ -499,9 +525,14 @@ def train_runs(
         state.append(run)
         opts.append(opt)
 
-    s, m = split_tensors(db, "train", device)
-    vs, vm = split_tensors(db, "val", device)
-    n = len(s) - 1
+    train_splits = [split_tensors(db, "train", device) for db in dbs]
+    val = [split_tensors(db, "val", device) for db in dbs]
+    if len(dbs) == 1:
+        (s, m), (vs, vm) = train_splits[0], val[0]
+    else:  # (W, n + 1, .): one gather serves every database
+        s, m = (torch.stack(t) for t in zip(*train_splits, strict=True))
+    del train_splits
+    n = s.shape[-2] - 1
     stacks: list[tuple[list[_Run], StackedEncoders]] = []  # seeds at one epoch, and their stack
     by_epoch: dict[int, list[int]] = {}
     for i, run in enumerate(state):
@@ -526,9 +557,9 @@ def train_runs(
 
             errors = train_epoch_stacked_recurrent(net, s, m, config.batch_size, config.horizon)
         else:
-            errors = train_epoch_stacked(
-                net, s, m, [r.seed for r in members], epoch, config.batch_size
-            )
+            order = [r.seed for r in members]  # each seed's own data order
+            splits = [r.split for r in members]
+            errors = train_epoch_stacked(net, s, m, order, epoch, config.batch_size, splits)
         train_errors = errors.tolist()
         seconds = time.perf_counter() - t0  # training alone: the record's samples/s
         for k, run in enumerate(members):
@@ -536,7 +567,7 @@ def train_runs(
         if model_config.recurrent:  # every seed at once, as train.model_error does each
             val_errors = sequence_errors(net, vs, vm)
         else:
-            val_errors = [train_mod.model_error(run.model, vs, vm) for run in members]
+            val_errors = [train_mod.model_error(run.model, *val[run.split]) for run in members]
         stack_seconds = time.perf_counter() - t0  # charged to each seed, as its epoch's time
         for k, run in enumerate(members):
             t1 = time.perf_counter()
@@ -558,7 +589,7 @@ def train_runs(
             )
             run.epoch += 1
             if on_epoch is not None:
-                on_epoch(run.seed, record, run.stopper)
+                on_epoch(run.index, record, run.stopper)
     return [run.result for run in state]
 
 
@@ -611,7 +642,8 @@ def train_seeds(
     world = load_database(data).meta["world"]["name"]
     runs = [(seed, out / run_name(world, config.model, seed)) for seed in seeds]
     if trains_stacked(config.model, config.device):
-        return train_runs(data, runs, config, resume, on_epoch)
+        by_index = None if on_epoch is None else (lambda i, r, st: on_epoch(seeds[i], r, st))
+        return train_runs(data, runs, config, resume, by_index)
     results = []
     for seed, run_dir in runs:
         callback = None if on_epoch is None else (lambda r, st, seed=seed: on_epoch(seed, r, st))
