@@ -71,6 +71,7 @@ CHUNK_BATCHES = 512  # batches gathered at once: K x 32,768 transitions, a few M
 ALIGN_ROWS = 16  # gathered rows padded to a multiple of this: 64-byte aligned seed slabs
 ADAM_VECTOR = 16  # floats per SIMD vector, at most (AVX-512); see StackedEncoders._adam_lists
 NARROW = 16  # a product with fewer columns than this runs as its transpose (see matmul)
+TALL = 512  # from this many rows on, a weight gradient runs as its transpose (weight_grad)
 
 # (which run: its seed for train_seeds, its index in runs for train_runs; record, stopper)
 OnEpoch = Callable[[int, EpochRecord, EarlyStopping], None]
@@ -134,8 +135,12 @@ def linear(h: torch.Tensor, w: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
 
 
 def weight_grad(dy: torch.Tensor, h: torch.Tensor, out: torch.Tensor) -> None:
-    """out (K, out, in) = dy^T h, for dy (K, B, out) and h (K, B, in)."""
-    if h.shape[-1] < NARROW <= dy.shape[-1]:
+    """out (K, out, in) = dy^T h, for dy (K, B, out) and h (K, B, in). Over a tall B (a
+    recurrent chunk's 1,280 steps) the product with fewer rows is faster (0.69 ms against
+    0.83 for K = 5, in = 32, out = 128), and the copy into out costs little."""
+    if h.shape[-1] < NARROW <= dy.shape[-1] or (
+        h.shape[-2] >= TALL and h.shape[-1] < dy.shape[-1]
+    ):
         out.copy_(torch.bmm(h.mT, dy).mT)
     else:
         torch.bmm(dy.mT, h, out=out)

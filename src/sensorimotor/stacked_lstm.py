@@ -176,6 +176,7 @@ class _LayerBuffers:
     cs: torch.Tensor  # (K, T + 1, B, H): c alike
     tc: torch.Tensor  # (K, T, B, H): tanh(c_t)
     arrays: tuple  # numpy views of act, hs, cs, tc for the kernels
+    h_steps: list[torch.Tensor]  # hs[:, t] for every t: views made once (a view costs 2 us)
 
 
 @dataclass
@@ -187,6 +188,7 @@ class _Buffers:
     rec: torch.Tensor  # (K, B, 4H): h_{t-1} W_hh^T
     rec_back: torch.Tensor  # (K, B, H): da_{t+1} W_hh
     da: torch.Tensor  # (K, T, B, 4H)
+    da_steps: list[torch.Tensor]  # da[:, t] for every t
     dc: torch.Tensor  # (K, B, H)
     scale: np.ndarray  # (4H,): 1/2 for the sigmoid gates i, f, o; 1 for g
 
@@ -209,13 +211,15 @@ def _buffers(net: StackedEncoders, t: int, b: int) -> _Buffers:
             hs, cs = torch.empty(k, t + 1, b, h), torch.empty(k, t + 1, b, h)
             tc = torch.empty(k, t, b, h)
             arrays = tuple(x.numpy() for x in (act, hs, cs, tc))
-            layers.append(_LayerBuffers(act, hs, cs, tc, arrays))
+            layers.append(_LayerBuffers(act, hs, cs, tc, arrays, list(hs.unbind(1))))
         cache.clear()  # at most two chunk lengths an epoch: keep only the current one
+        da = torch.empty(k, t, b, 4 * h)
         cache[key] = _Buffers(
             layers,
             torch.empty(k, b, 4 * h),
             torch.empty(k, b, h),
-            torch.empty(k, t, b, 4 * h),
+            da,
+            list(da.unbind(1)),
             torch.empty(k, b, h),
             gate_scale(h),
         )
@@ -273,7 +277,7 @@ def forward_backward(
         act_a, hs_a, cs_a, tc_a = buf.arrays
         whh_t = whh.mT
         for t in range(T):
-            torch.bmm(buf.hs[:, t], whh_t, out=rec)  # (K, B, 4H)
+            torch.bmm(buf.h_steps[t], whh_t, out=rec)  # (K, B, 4H)
             cell_forward(act_a, rec_a, bias, bufs.scale, hs_a, cs_a, tc_a, t)
         inputs.append(buf.hs[:, 1:].reshape(K, n, -1))  # (K, TB, H), a view
     (i_out,) = net.chains["sensor_out"]
@@ -317,7 +321,7 @@ def forward_backward(
         for t in range(T - 1, -1, -1):
             cell_backward(dh_a, rec_back_a, act_a, cs_a, tc_a, dc_a, da_a, db_a, t)
             if t:
-                torch.bmm(da[:, t], whh, out=rec_back)  # (K, B, H)
+                torch.bmm(bufs.da_steps[t], whh, out=rec_back)  # (K, B, H)
         weight_grad(da2, inputs[layer], grads[iwih])
         weight_grad(da2, buf.hs[:, :T].reshape(K, n, -1), grads[iwhh])
         grads[ibhh].copy_(grads[ibih])
