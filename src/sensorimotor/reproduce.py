@@ -96,6 +96,11 @@ def run_matches(run: Path, data_sha: str, config: dict) -> bool:
     return made.get("data", {}).get("sha256") == data_sha and made.get("train") == want
 
 
+# Core-seconds one seed took in its stack in the paper grid on a 2-core CPU (docs/results.md):
+# the order in which training jobs start (longest first).
+SEED_COST = {"rec-sm": 230, "rec-s": 77, "sm": 44, "s": 20}
+
+
 def _stack_name(model: str, runs: list[tuple[str, int]]) -> str:
     """A stacked job's name: ``square+rooms1__sm__s0,1`` where every world has those seeds."""
     seeds: dict[str, list[str]] = {}
@@ -108,8 +113,12 @@ def _stack_name(model: str, runs: list[tuple[str, int]]) -> str:
 
 def _train_config(sc: Scale, model: str, device: str, seed: int | None = None) -> dict:
     """The training configuration of one run (of a stack's runs without ``seed``)."""
-    config = {"model": model, "device": device, "max_epochs": sc.max_epochs.get(model)}
-    config["patience"] = sc.patience
+    config = {
+        "model": model,
+        "device": device,
+        "max_epochs": sc.max_epochs.get(model),
+        "patience": sc.patience,
+    }
     return config if seed is None else {**config, "seed": seed}
 
 
@@ -389,9 +398,8 @@ def reproduce(
             config = _train_config(sc, model, device)
             jobs.append(Job(name, _train_stack_job, ([e for _, e in stack], config)))
             trains[name] = [(world, model, sd) for world, (_, sd, _, _) in stack]
-        # longest first (Rec-SM trains longest, S shortest): the workers finish closer together
-        cost = {"rec-sm": 0, "rec-s": 1, "sm": 2, "s": 3}
-        jobs.sort(key=lambda job: cost[job.name.split("__")[1]])
+        # longest first, so that the workers finish closer together
+        jobs.sort(key=lambda job: -sum(SEED_COST[model] for _, model, _ in trains[job.name]))
         n_jobs = len(jobs)
         rep.timings["train"] = {"jobs": n_train, "cached": len(rep.runs) - n_train}
         log(
