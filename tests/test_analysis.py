@@ -12,6 +12,7 @@ from matplotlib.quiver import Quiver
 
 from conftest import assert_one_line_error
 from sensorimotor import analysis as an
+from sensorimotor.analysis.probes import KNN_K
 from sensorimotor.analysis_plots import plot_clusters, plot_pca, plot_transfer
 from sensorimotor.data import generate, load_database, save_database
 from sensorimotor.errors import InputError
@@ -118,6 +119,44 @@ def test_position_scores_and_knn_mse():
     blind = an.position_scores(rng.normal(size=(n, 10)), poses, seed=0, world_size=(50, 50))
     assert blind["r2_x"] < 0.02
     assert blind["knn_mse"] == pytest.approx(blind["knn_mse_chance"], rel=0.1)
+
+
+def _knn_sq_brute(z: np.ndarray, q: np.ndarray, k: int) -> np.ndarray:
+    """Reference: each step's k nearest by full distance sort, the candidates at the distance
+    where the k places run out each counted (places left) / (candidates)."""
+    out = np.zeros(len(z))
+    for i in range(len(z)):
+        d = np.sqrt(((z - z[i]) ** 2).sum(axis=1))
+        d[i] = np.inf
+        cost = ((q - q[i]) ** 2).sum(axis=1)
+        left = k
+        for level in np.unique(d[np.isfinite(d)]):
+            at = d == level
+            take = min(left, at.sum())
+            out[i] += take * cost[at].mean()
+            left -= take
+            if not left:
+                break
+    return out
+
+
+def test_knn_mse_matches_a_brute_force_search_and_averages_identical_points():
+    rng = np.random.default_rng(1)
+    z = rng.normal(size=(120, 3))
+    z[40:90] = z[40]  # 50 identical points, and pairs below
+    z[100:110] = z[90:100]
+    q = rng.uniform(0, 1, (120, 2))
+    for k in (1, 5):
+        got = an.knn_mse(z, q, (1, 1), k=k)["knn_mse"]
+        assert got == pytest.approx(_knn_sq_brute(z, q, k).mean() / k, rel=1e-12)
+    # identical points scattered in space: their neighbours are nowhere in particular, however
+    # close in time (index) they lie
+    z = np.zeros((400, 2))
+    z[:50] = rng.normal(size=(50, 2))
+    q = np.column_stack([np.linspace(0, 1, 400), np.zeros(400)])
+    got = an.knn_mse(z, q, (1, 1))
+    assert got["knn_mse"] == pytest.approx(_knn_sq_brute(z, q, KNN_K).mean() / KNN_K, rel=1e-12)
+    assert got["knn_mse"] > 0.5 * got["chance"]
 
 
 def test_knn_mse_subsamples_large_inputs():

@@ -293,6 +293,8 @@ def _analysis_targets(rep: Reproduction, world: str, model: str, seed: int) -> l
 def _analysis_job_of(target: Target, path_hash: dict[str, str]) -> Job | None:
     """The job of one analysis, or None if its result is kept. ``path_hash``: each database's
     hash by its path, computed once (a database is tens of MB to read again)."""
+    from sensorimotor.analysis import METRICS_VERSION
+
     name, run, data, fit, dest = target
     model_hash = "raw" if run == "raw" else file_hash(Path(run) / "model.pt")
     key = stage_key(
@@ -301,6 +303,7 @@ def _analysis_job_of(target: Target, path_hash: dict[str, str]) -> Job | None:
             "data": path_hash[data],
             "fit": None if fit is None else path_hash[fit],
             "version": __version__,
+            "metrics": METRICS_VERSION,
         }
     )
     metrics_path = Path(dest) / "metrics.json"

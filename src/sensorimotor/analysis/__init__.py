@@ -47,10 +47,15 @@ from sensorimotor.analysis.representation import (
 )
 from sensorimotor.analysis.run import RAW, analyze_files, representation_of, summary_lines
 
+# Raised whenever a metric's definition changes, so that ``reproduce`` redoes kept analyses.
+# 2: KNN-MSE averages ties between identical representations (was: broken by search order).
+METRICS_VERSION = 2
+
 __all__ = [
     "KMEANS_N_INIT",
     "KNN_K",
     "KNN_MAX_POINTS",
+    "METRICS_VERSION",
     "MOSTLY",
     "N_CLUSTERS",
     "RAW",

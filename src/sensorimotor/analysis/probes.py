@@ -71,8 +71,12 @@ def knn_mse(
 
     0 means representation neighbours share a place; neighbours drawn at random score
     ``chance`` (the same mean over random pairs; about 1/3 for uniform occupancy). Above
-    ``max_points`` steps a fixed random subsample (``seed``) is used for both; ties in ``z``
-    (e.g. many identical "nothing in view" readings) are broken by the search order.
+    ``max_points`` steps a fixed random subsample (``seed``) is used for both.
+
+    Identical representations (every "nothing in view" reading of ``raw`` or S is one point)
+    tie: of g identical candidates for the last r places, each counts r / g, the mean over
+    all ways to break the tie. Breaking it by search order instead would pick steps close in
+    time, hence in space, and score a representation that cannot tell them apart as if it did.
     """
     z = check_z(z)
     q = np.asarray(positions, dtype=np.float64)[:, :2] / np.asarray(world_size, dtype=np.float64)
@@ -80,12 +84,42 @@ def knn_mse(
     z, q = z[idx], q[idx]
     if len(z) <= k:
         return {"knn_mse": float("nan"), "chance": float("nan"), "points": len(z), "k": k}
-    nn = NearestNeighbors(n_neighbors=k).fit(z)
-    neighbours = nn.kneighbors(return_distance=False)  # (M, k); no query point is its own
-    err = ((q[:, None, :] - q[neighbours]) ** 2).sum(axis=2).mean()
+    err = _tied_knn_sq(z, q, k).mean() / k
     partner = np.random.default_rng(seed + 1).permutation(len(q))
     chance = ((q - q[partner]) ** 2).sum(axis=1).mean()
     return {"knn_mse": float(err), "chance": float(chance), "points": len(z), "k": k}
+
+
+def _tied_knn_sq(z: np.ndarray, q: np.ndarray, k: int) -> np.ndarray:
+    """(N,) sum over each step's k nearest neighbours in ``z`` of |q_i - q_j|^2, ties between
+    identical rows of ``z`` averaged (see ``knn_mse``).
+
+    The search runs over the distinct rows (groups); a group's sums of q and |q|^2 give the
+    mean |q_i - q_j|^2 from step i over the group's steps without visiting them."""
+    groups, inv, counts = np.unique(z, axis=0, return_inverse=True, return_counts=True)
+    inv = inv.reshape(-1)
+    sum_q = np.zeros((len(groups), q.shape[1]))
+    np.add.at(sum_q, inv, q)
+    norm = (q * q).sum(axis=1)  # |q_i|^2
+    sum_norm = np.bincount(inv, weights=norm, minlength=len(groups))
+
+    def sum_sq(g: np.ndarray) -> np.ndarray:  # sum over group g's steps of |q_i - q_j|^2
+        return counts[g] * norm - 2 * (q * sum_q[g]).sum(axis=1) + sum_norm[g]
+
+    # the own group first: its other steps are at distance 0 (i itself adds 0 to sum_sq)
+    size = counts[inv]
+    own = np.minimum(size - 1, k)
+    total = own * sum_sq(inv) / np.maximum(size - 1, 1)
+    left = k - own
+    # then the nearest other groups, in order; k + 1 nearest groups always fill k places
+    near = NearestNeighbors(n_neighbors=min(k + 1, len(groups))).fit(groups)
+    order = near.kneighbors(groups, return_distance=False)  # (G, k + 1), own group included
+    for rank in range(order.shape[1]):
+        g = order[inv, rank]
+        take = np.where(g != inv, np.minimum(left, counts[g]), 0)
+        total += take * sum_sq(g) / counts[g]
+        left -= take
+    return total
 
 
 def position_scores(
