@@ -165,3 +165,25 @@ def test_a_failing_worker_names_its_run_and_finished_runs_are_kept(smoke, tmp_pa
     timings = json.loads((out / "timings.json").read_text())
     assert timings["train"]["jobs"] == 0
     assert _table_numbers(out) == _table_numbers(smoke)
+
+
+def test_a_bad_database_in_a_stack_across_worlds_fails_only_its_runs(tmp_path):
+    from sensorimotor.data import file_hash, generate, save_database
+    from sensorimotor.errors import InputError
+    from sensorimotor.reproduce import _train_stack_job
+    from sensorimotor.world import load_world
+
+    good, bad = tmp_path / "square.npz", tmp_path / "rooms2.npz"
+    save_database(generate(load_world("square"), 3000, seed=0), good)
+    save_database(generate(load_world("rooms2"), 3000, seed=0), bad)
+    bad.write_bytes(bad.read_bytes()[:1000])
+    runs = [
+        (str(good), 0, str(tmp_path / "square__s__s0"), file_hash(good)),
+        (str(bad), 0, str(tmp_path / "rooms2__s__s0"), file_hash(bad)),
+        (str(bad), 1, str(tmp_path / "rooms2__s__s1"), file_hash(bad)),
+    ]
+    config = {"model": "s", "device": "cpu", "max_epochs": 1, "patience": 10}
+    with pytest.raises(InputError, match=r"^rooms2__s__s0 \(and 1 more runs\): .*rooms2\.npz"):
+        _train_stack_job(runs, config)
+    assert (tmp_path / "square__s__s0" / "model.pt").exists()  # trained, kept for the retry
+    assert not (tmp_path / "rooms2__s__s0").exists()

@@ -51,6 +51,7 @@ def claim_numbers(analyses: dict[str, dict], runs: list[tuple[str, str, int]], w
                     "r2_y",
                     "r2_cos",
                     "knn_mse",
+                    "knn_chance",
                 )
             }
             for key in keys:
@@ -65,6 +66,7 @@ def claim_numbers(analyses: dict[str, dict], runs: list[tuple[str, str, int]], w
                 vals["r2_y"].append(pos["r2_y"])
                 vals["r2_cos"].append(pos["r2_cos_heading"])
                 vals["knn_mse"].append(pos["knn_mse"])
+                vals["knn_chance"].append(pos["knn_mse_chance"])
             out[world][kind] = vals
     return out
 

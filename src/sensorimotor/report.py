@@ -363,6 +363,12 @@ def write_report(rep, argv: list[str], hardware: dict) -> tuple[Path, Path]:
                 ],
                 body,
             ),
+            p(
+                f"KNN-MSE of random pairs of steps (chance) on {world}: "
+                f"{numbers[world]['raw']['knn_chance'][0]:.3f}. Identical "
+                "representations (every 'nothing in view' step of the raw readings, S and SM) "
+                "are tied neighbours; ties count as the mean over all ways to break them."
+            ),
         ]
         b.append(
             image(

@@ -149,13 +149,32 @@ def _train_job(data: str, run_dir: str, config: dict, data_sha: str) -> dict:
 
 def _train_stack_job(runs: list[tuple[str, int, str, str]], config: dict) -> dict:
     """Several seeds of one model in one process, stacked (``stacked.train_runs``); each run
-    ``(data, seed, run folder, data hash)``, feed-forward ones from several worlds at once."""
+    ``(data, seed, run folder, data hash)``, feed-forward ones from several worlds at once.
+    The runs of a database that fails to load are left out, the others train, then the job
+    fails naming the first run left out and its file."""
     from sensorimotor.data import load_database
+
+    bad: dict[str, InputError] = {}
+    for data in dict.fromkeys(data for data, _, _, _ in runs):
+        try:
+            load_database(data)  # bad data fails here, before a stale run folder is cleared
+        except InputError as err:
+            bad[data] = err
+    left_out = [(data, Path(run_dir).name) for data, _, run_dir, _ in runs if data in bad]
+    runs = [run for run in runs if run[0] not in bad]
+    results = _train_stack(runs, config) if runs else {}
+    if left_out:
+        data, name = left_out[0]
+        more = f" (and {len(left_out) - 1} more runs)" if len(left_out) > 1 else ""
+        raise InputError(f"{name}{more}: {bad[data]}")
+    return results
+
+
+def _train_stack(runs: list[tuple[str, int, str, str]], config: dict) -> dict:
+    """``_train_stack_job``'s training, its databases known to load."""
     from sensorimotor.stacked import train_runs
     from sensorimotor.train import TrainConfig
 
-    for data in dict.fromkeys(data for data, _, _, _ in runs):
-        load_database(data)  # bad data fails here, before a stale run folder is cleared
     for _, seed, run_dir, data_sha in runs:
         run = Path(run_dir)
         if run.exists() and not run_matches(run, data_sha, {**config, "seed": seed}):
