@@ -185,7 +185,7 @@ def _train_stack(runs: list[tuple[str, int, str, str]], config: dict) -> dict:
         report(
             names[i],
             f"epoch {r.epoch:3d} val {r.val_error:.5f} (best {stopper.lowest:.5f}) "
-            f"{r.samples_per_s / 1e3:.0f} k samples/s (stack of {len(runs)})",
+            f"{r.samples_per_s / 1e3:.0f} k samples/s a seed (stacked)",
         )
 
     results = train_runs(
