@@ -162,6 +162,8 @@ def test_same_seed_same_weights_and_resume_equals_uninterrupted(kind, square_db_
     train(square_db_path, tmp_path / "b", cfg)
     wa, wb = _weights(tmp_path / "a"), _weights(tmp_path / "b")
     assert all(torch.equal(wa[k], wb[k]) for k in wa)
+    # the same bytes too: no temporary file name leaks into the archive
+    assert (tmp_path / "a" / "model.pt").read_bytes() == (tmp_path / "b" / "model.pt").read_bytes()
     other = TrainConfig(model=kind, seed=4, max_epochs=3)
     train(square_db_path, tmp_path / "c", other)
     assert not all(torch.equal(wa[k], _weights(tmp_path / "c")[k]) for k in wa)

@@ -115,8 +115,10 @@ def run_name(world: str, model: str, seed: int) -> str:
 
 
 def _torch_save(obj, path: Path) -> None:
-    with atomic_path(path) as tmp:
-        torch.save(obj, tmp)
+    # Through a file object: torch.save(path) names the archive's root after the (random)
+    # temporary file, which would make the same weights different bytes.
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:
+        torch.save(obj, f)
 
 
 def _history_csv(history: list[EpochRecord]) -> str:
