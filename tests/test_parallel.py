@@ -66,3 +66,23 @@ def test_a_single_job_with_follow_ups_still_uses_the_workers():
 
     results, _ = run_jobs([Job("first", os.getpid)], 2, then=then)
     assert os.getpid() not in results.values()
+
+
+def _native_threads() -> list[int]:
+    """The threads of torch and of every native pool an analysis loads (a worker's job)."""
+    import sklearn.cluster  # noqa: F401  (loads scikit-learn's OpenMP)
+    import torch
+    from threadpoolctl import threadpool_info
+
+    return [torch.get_num_threads()] + [pool["num_threads"] for pool in threadpool_info()]
+
+
+def test_a_worker_holds_every_native_pool_to_its_threads():
+    """Not only torch: scikit-learn's OpenMP and numpy's BLAS left at every core would slow the
+    worker training beside an analysis."""
+    jobs = [Job(f"job{i}", _native_threads) for i in range(2)]
+    results, failures = run_jobs(jobs, 2)
+    assert not failures
+    for threads in results.values():
+        assert len(threads) > 2  # torch and at least a BLAS and an OpenMP were seen
+        assert set(threads) == {1}
