@@ -12,10 +12,12 @@ from matplotlib.quiver import Quiver
 
 from conftest import assert_one_line_error
 from sensorimotor import analysis as an
+from sensorimotor import events as ev
 from sensorimotor.analysis.probes import KNN_K
 from sensorimotor.analysis_plots import plot_clusters, plot_pca, plot_transfer
 from sensorimotor.data import generate, load_database, save_database
 from sensorimotor.errors import InputError
+from sensorimotor.sim import SensorLayout
 from sensorimotor.world import load_world
 
 
@@ -261,6 +263,16 @@ def test_cluster_figure_of_a_few_clusters_and_transfer(square_test):
     assert sum(ax.axison for ax in fig.axes) == 7
 
 
+def test_a_transferred_cluster_that_no_step_falls_in_keeps_its_panel(square_test):
+    world, part = square_test
+    labels = np.arange(len(part)) % 18  # clusters 18 and 19 of 20 get no step of this world
+    titles = [f"#{c}" for c in range(20)]
+    fig = plot_transfer(world, part.poses, labels, source="rooms1", titles=titles)
+    assert [ax.get_title() for ax in fig.axes] == titles
+    drawn = [quivers(ax)[0].N if quivers(ax) else 0 for ax in fig.axes[-3:]]
+    assert drawn == [(labels == 17).sum(), 0, 0]
+
+
 def test_pca_figure(square_test):
     _, part = square_test
     pc = an.pca_2d(an.raw_representation(part.sensors))
@@ -330,6 +342,19 @@ def test_analyze_refuses_bad_input_naming_the_file(square_db_path, tmp_path):
         an.analyze_files("raw", square_db_path, a_file)
     with pytest.raises(InputError, match="not found"):
         an.analyze_files("raw", square_db_path, tmp_path / "o", fit_data=tmp_path / "x.npz")
+
+
+def test_events_are_those_the_databases_own_lasers_see(tmp_path):
+    world = load_world("rooms1")
+    layout = SensorLayout(angles=(-1.5, -0.75, 0.0, 0.75, 1.5), max_range=12.0)
+    path = tmp_path / "wide.npz"
+    save_database(generate(world, 20_000, seed=2, layout=layout), path)
+    events = an.analyze_files("raw", path, tmp_path / "o").metrics["analysis"]["events"]
+    test = load_database(path).take("test")
+    for name, in_view in (("corner", ev.corner_in_view), ("wall_end", ev.wall_end_in_view)):
+        assert events[name]["count"] == in_view(world, test.poses, layout).sum() > 0
+        assert events[name]["count"] > in_view(world, test.poses).sum()  # more than the paper's see
+    assert events["nothing"]["count"] == ev.nothing_in_view(test.sensors, 12.0).sum()
 
 
 def test_analyze_refuses_clusters_fitted_on_another_sensor_layout(square_db_path, tmp_path):

@@ -240,6 +240,25 @@ def test_paper_policy_replays_the_rollout_of_a_database(name, seed):
     np.testing.assert_allclose(np.array(sensors), run_.sensors, rtol=1e-6, atol=1e-6)
 
 
+def test_with_noise_the_policy_on_the_true_readings_walks_as_generate_does():
+    world, steps, seed, noise = load_world("rooms1"), 3000, 3, 0.5
+    run_ = sim.rollout(world, steps, seed, noise_std=noise)
+    rng = np.random.default_rng(seed)
+    env = LaserWorldEnv(world, noise=noise)
+    observation, info = env.reset(seed=seed, options={"pose": sim.sample_start(world, rng)})
+    poses, motors, error = [], [], []
+    for _ in range(steps):
+        poses.append(info["pose"])
+        inside = (info["readings"] > 2) & (info["readings"] < 8)  # far from clipping
+        error.extend(observation[inside] - info["readings"][inside])
+        motors.append(paper_policy(info["readings"], rng))
+        observation, _, _, _, info = env.step(motors[-1])
+        assert info["collision"] is False
+    np.testing.assert_array_equal(np.array(poses), run_.poses)
+    np.testing.assert_array_equal(np.array(motors), run_.motors)
+    assert 0.48 < np.std(error) < 0.52  # while the observations are noisy
+
+
 def test_paper_policy_turns_around_near_a_wall():
     rng = np.random.default_rng(0)
     d, r = paper_policy(np.array([5, 5, 0.5, 5, 5], dtype=np.float32), rng)

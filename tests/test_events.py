@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from sensorimotor import events as ev
-from sensorimotor.sim import SENSOR_ANGLES
+from sensorimotor import sim
+from sensorimotor.sim import SENSOR_ANGLES, SensorLayout
 from sensorimotor.world import load_world, world_from_dict
 
 
@@ -153,6 +154,21 @@ def test_fan_follows_the_angles_argument():
     assert not ev.points_in_view(square, pose, corner)[0, 0]
     assert ev.points_in_view(square, pose, corner, angles=np.array([-1.0, 1.0]))[0, 0]
     assert not ev.points_in_view(square, pose, corner, angles=SENSOR_ANGLES, max_range=5)[0, 0]
+
+
+def test_corners_and_wall_ends_in_view_follow_the_layout():
+    rooms1 = load_world("rooms1")
+    poses = sim.rollout(rooms1, 3000, seed=1).poses
+    short = SensorLayout(max_range=4.0)
+    wide = SensorLayout(angles=(-1.5, -0.75, 0.0, 0.75, 1.5))
+    for in_view in (ev.corner_in_view, ev.wall_end_in_view):
+        paper = in_view(rooms1, poses)
+        np.testing.assert_array_equal(paper, in_view(rooms1, poses, SensorLayout()))
+        near, broad = in_view(rooms1, poses, short), in_view(rooms1, poses, wide)
+        assert not (near & ~paper).any()  # nearer: a subset
+        assert near.sum() < paper.sum()
+        assert not (paper & ~broad).any()  # wider: a superset
+        assert broad.sum() > paper.sum()
 
 
 # ---------------------------------------------------------------------------------------------

@@ -4,12 +4,13 @@ the two renderings saying the same thing."""
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import pytest
 
 from sensorimotor.analysis import analyze_representation
 from sensorimotor.analysis.clusters import cluster_event_table
-from sensorimotor.claims import _verdict, cluster_f1
+from sensorimotor.claims import _verdict, cluster_f1, paper_claims
 from sensorimotor.data import generate
 from sensorimotor.report import h, image, p, paper_agreement, table, to_html, to_markdown
 from sensorimotor.world import load_world
@@ -43,6 +44,64 @@ def test_verdict_is_none_when_a_number_is_missing():
     assert _verdict([0.1, 0.2], 0.1 > 0.2) is False
     assert _verdict([math.nan, 0.2], False) is None
     assert _verdict([None, 0.2], False) is None
+
+
+def fake_report(rec_s_rooms1: tuple[float, float], fit_f1: float, to_f1: float):
+    """A report of 5 seeds a cell, Rec-S on Rooms1 at (mean, sd), and a Rooms1 wall-end cluster
+    of F1 ``fit_f1`` transferred to Rooms2 at F1 ``to_f1`` (precision = recall = F1)."""
+    means = {"s": 0.058, "sm": 0.013, "rec-s": 0.057, "rec-sm": 0.009}
+    cells = {
+        m: {w: {"mean": v, "sd": 0.0002, "n": 5} for w in ("square", "rooms1")}
+        for m, v in means.items()
+    }
+    cells["rec-s"]["rooms1"] = {"mean": rec_s_rooms1[0], "sd": rec_s_rooms1[1], "n": 5}
+    table = {
+        "worlds": ["square", "rooms1"],
+        "tables": {"square": [{"model": m, "cells": c} for m, c in cells.items()]},
+        "paper_ordering_holds": {"square": {"square": True, "rooms1": True}},
+    }
+
+    def wall_end_metrics(f1):
+        return {
+            "events": {"wall_end": {"cluster": 3, "f1": f1, "count": 100}},
+            "clusters": [{"id": 3, "size": 100, "precision": {"wall_end": f1}}],
+        }
+
+    transfers = {
+        "rooms1__rec-sm__s0__to__rooms2": {
+            "fit_analysis": wall_end_metrics(fit_f1),
+            "analysis": wall_end_metrics(to_f1),
+        }
+    }
+    names = ("corner_f1", "wall_end_f1", "nothing_clusters", "behind_r2", "r2_x", "r2_y")
+    per_seed = {name: [0.5] for name in names}
+    numbers = {w: {m: per_seed for m in ("raw", *means)} for w in ("square", "rooms1")}
+    numbers["rooms1"]["raw"] = {**per_seed, "wall_end_f1": [0.10]}
+    claims = paper_claims(SimpleNamespace(table=table, transfers=transfers), numbers)
+    return {text.split(":")[0]: (evidence, verdict) for text, evidence, verdict in claims}
+
+
+def test_memory_without_motors_needs_a_gap_beyond_the_seeds_spread():
+    # the published Rooms1 cells: Rec-S 0.05794 +- 0.00084 against S 0.058 +- 0.0002
+    evidence, verdict = fake_report((0.05794, 0.00084), 0.29, 0.33)[
+        "Memory lowers the error without motors too"
+    ]
+    assert verdict is False
+    assert "rooms1: Rec-S 0.05794 vs S 0.05800 (gap 0.2 SE)" in evidence
+    evidence, verdict = fake_report((0.0574, 0.0002), 0.29, 0.33)[
+        "Memory lowers the error without motors too"
+    ]
+    assert verdict is True
+    assert "gap 4.7 SE" in evidence
+
+
+def test_a_transfer_is_judged_only_where_the_cluster_grew():
+    assert fake_report((0.057, 0.0002), 0.29, 0.33)["Transfer"] == (
+        "rooms1 0.29 (raw 0.10), rooms2 0.33",
+        True,
+    )
+    assert fake_report((0.057, 0.0002), 0.29, 0.10)["Transfer"][1] is False  # below half
+    assert fake_report((0.057, 0.0002), 0.15, 0.33)["Transfer"][1] is None  # never grew
 
 
 def test_paper_agreement_counts_cells_within_a_quarter():

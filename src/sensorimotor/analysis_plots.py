@@ -120,7 +120,8 @@ def plot_clusters(
     ncols: int = NCOLS,
     suptitle: str | None = None,
 ) -> Figure:
-    """Paper Figs. 5-8: one map per cluster (``clusters``, default all ``0 .. max(labels)``).
+    """Paper Figs. 5-8: one map per cluster (``clusters``; default one per title, else ``0 ..
+    max(labels)``, so that a cluster no step falls in, as in a transfer, still gets its panel).
 
     ``poses`` (N, 3) and ``labels`` (N,) are aligned; panel c draws ``n_arrows`` of cluster c's
     steps at random (``seed + c``). ``titles[c]`` titles panel c (default ``#c share%``), e.g.
@@ -130,7 +131,10 @@ def plot_clusters(
     labels = np.asarray(labels)
     if len(poses) != len(labels):
         raise ValueError(f"poses has {len(poses)} rows, labels {len(labels)}")
-    ids = list(range(int(labels.max()) + 1)) if clusters is None else [int(c) for c in clusters]
+    if clusters is not None:
+        ids = [int(c) for c in clusters]
+    else:
+        ids = list(range(len(titles) if titles is not None else int(labels.max()) + 1))
     ncols = min(ncols, len(ids))
     nrows = math.ceil(len(ids) / ncols)
     if fig is None:

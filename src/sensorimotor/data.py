@@ -51,6 +51,12 @@ class Database:
     def max_range(self) -> float:
         return float(self.meta.get("sensor_layout", {}).get("max_range", 10.0))
 
+    @property
+    def layout(self) -> SensorLayout:
+        """The lasers the database was recorded with (the paper's when the meta has none)."""
+        layout = self.meta.get("sensor_layout", {})
+        return SensorLayout(tuple(layout.get("angles", DEFAULT_LAYOUT.angles)), self.max_range)
+
     def split(self, name: str) -> slice:
         """Row range of split ``train``, ``val`` or ``test``."""
         return split_slice(len(self), name)

@@ -26,7 +26,7 @@ import math
 
 import numpy as np
 
-from sensorimotor.sim import MAX_RANGE, SENSOR_ANGLES, SensorLayout, read_sensors
+from sensorimotor.sim import DEFAULT_LAYOUT, MAX_RANGE, SENSOR_ANGLES, SensorLayout, read_sensors
 from sensorimotor.world import World, point_segment_distance
 
 TOUCH_TOL = 1e-6  # units; an end point this close to another wall touches it
@@ -176,17 +176,27 @@ def _concave_side(world: World, poses: np.ndarray, corners: np.ndarray) -> np.nd
     return out
 
 
-def corner_in_view(world: World, poses: np.ndarray) -> np.ndarray:
-    """(N,) bool: some corner is in view and seen as a concave corner (see the module docstring)."""
+def corner_in_view(
+    world: World, poses: np.ndarray, layout: SensorLayout = DEFAULT_LAYOUT
+) -> np.ndarray:
+    """(N,) bool: some corner is in view of ``layout``'s lasers and seen as a concave corner
+    (see the module docstring)."""
     poses = _as_poses(poses)
     corners = corner_points(world)
-    seen = points_in_view(world, poses, corners) & _concave_side(world, poses, corners)
+    seen = points_in_view(world, poses, corners, np.asarray(layout.angles), layout.max_range)
+    return (seen & _concave_side(world, poses, corners)).any(axis=1)
+
+
+def wall_end_in_view(
+    world: World, poses: np.ndarray, layout: SensorLayout = DEFAULT_LAYOUT
+) -> np.ndarray:
+    """(N,) bool: some free wall end is in view of ``layout``'s lasers (always False in a world
+    without inner walls)."""
+    ends = free_wall_ends(world)
+    seen = points_in_view(
+        world, _as_poses(poses), ends, np.asarray(layout.angles), layout.max_range
+    )
     return seen.any(axis=1)
-
-
-def wall_end_in_view(world: World, poses: np.ndarray) -> np.ndarray:
-    """(N,) bool: some free wall end is in view (always False in a world without inner walls)."""
-    return points_in_view(world, _as_poses(poses), free_wall_ends(world)).any(axis=1)
 
 
 def nothing_in_view(sensors: np.ndarray, max_range: float = MAX_RANGE) -> np.ndarray:

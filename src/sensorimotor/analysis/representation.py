@@ -20,6 +20,7 @@ from sensorimotor.analysis.clusters import (
     project_2d,
 )
 from sensorimotor.analysis.probes import memory_scores, position_scores
+from sensorimotor.sim import DEFAULT_LAYOUT, SensorLayout
 from sensorimotor.world import World
 
 
@@ -31,12 +32,15 @@ def raw_representation(sensors: np.ndarray, max_range: float = 10.0) -> np.ndarr
     return scale_sensors(sensors, max_range)
 
 
-def world_events(world: World, sensors: np.ndarray, poses: np.ndarray, max_range: float) -> dict:
-    """The ground-truth events of each step: ``{name: (N,) bool}``; wall ends only if any exist."""
-    out = {"corner": ev.corner_in_view(world, poses)}
+def world_events(
+    world: World, sensors: np.ndarray, poses: np.ndarray, layout: SensorLayout = DEFAULT_LAYOUT
+) -> dict:
+    """The ground-truth events of each step, as ``layout``'s lasers see them: ``{name: (N,)
+    bool}``; wall ends only if any exist."""
+    out = {"corner": ev.corner_in_view(world, poses, layout)}
     if len(ev.free_wall_ends(world)):
-        out["wall_end"] = ev.wall_end_in_view(world, poses)
-    out["nothing"] = ev.nothing_in_view(sensors, max_range)
+        out["wall_end"] = ev.wall_end_in_view(world, poses, layout)
+    out["nothing"] = ev.nothing_in_view(sensors, layout.max_range)
     return out
 
 
@@ -80,11 +84,12 @@ def analyze_representation(
     seed: int = 0,
     kmeans: KMeans | None = None,
     pca: PCA | None = None,
-    max_range: float = 10.0,
+    layout: SensorLayout = DEFAULT_LAYOUT,
     k: int = N_CLUSTERS,
 ) -> RepresentationAnalysis:
     """Cluster and score a representation ``z`` (N, D) of steps with raw ``sensors`` (N, R, in
-    units) and true ``poses`` (N, 3) in ``world``.
+    units) and true ``poses`` (N, 3) in ``world``, recorded with ``layout``'s lasers (what
+    counts as a corner or a wall end in view).
 
     With ``kmeans`` (and ``pca``) fitted elsewhere, e.g. on another world, they are only applied
     (transfer); otherwise they are fitted here with ``seed``. ``metrics`` holds:
@@ -111,7 +116,7 @@ def analyze_representation(
     labels = assign_clusters(kmeans, z)
     pc = project_2d(pca, z)
 
-    events = world_events(world, sensors, poses, max_range)
+    events = world_events(world, sensors, poses, layout)
     behind = ev.distance_behind(world, poses)
     tables = {name: cluster_event_table(labels, e, k) for name, e in events.items()}
     rates = {name: float(e.mean()) for name, e in events.items()}

@@ -27,7 +27,7 @@ from sensorimotor.analysis.representation import (
 )
 from sensorimotor.data import Database, atomic_path, load_database, write_text_atomic
 from sensorimotor.errors import InputError
-from sensorimotor.sim import SensorLayout, read_sensors
+from sensorimotor.sim import read_sensors
 
 RAW = "raw"  # the RUN_DIR that means "the raw readings"
 SPLIT = "test"
@@ -54,9 +54,7 @@ def truth_readings(db: Database, split: str = SPLIT) -> np.ndarray:
     part = db.take(split)
     if not db.meta.get("noise_std"):
         return np.asarray(part.sensors, dtype=np.float64)
-    layout = db.meta.get("sensor_layout", {})
-    layout = SensorLayout(tuple(layout.get("angles", SensorLayout().angles)), db.max_range)
-    return read_sensors(db.world, part.poses, layout)
+    return read_sensors(db.world, part.poses, db.layout)
 
 
 def _analyze(run, db: Database, seed: int, fitted: RepresentationAnalysis | None = None):
@@ -69,7 +67,7 @@ def _analyze(run, db: Database, seed: int, fitted: RepresentationAnalysis | None
             f"{fitted.kmeans.n_features_in_}-d ones"
         )
     return analyze_representation(
-        z, truth_readings(db), part.poses, db.world, seed, kmeans, pca, db.max_range
+        z, truth_readings(db), part.poses, db.world, seed, kmeans, pca, db.layout
     )
 
 

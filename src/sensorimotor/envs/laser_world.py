@@ -79,7 +79,9 @@ class LaserWorldEnv(gym.Env[np.ndarray, np.ndarray]):
     ``[0, 10]``, drawn from ``self.np_random`` (as ``sensorimotor generate --noise``).
 
     The agent does not observe its pose; ``info["pose"]`` gives it, ``(x, y, heading)``
-    (float64), for analysis and plotting.
+    (float64), for analysis and plotting. ``info["readings"]`` gives the noiseless readings
+    (float64), what the generator's wall-avoiding behaviour reads even when it records noisy
+    ones: with noise, drive ``paper_policy`` with them to walk as ``generate --noise`` does.
 
     ## Rewards
 
@@ -169,7 +171,11 @@ class LaserWorldEnv(gym.Env[np.ndarray, np.ndarray]):
         return readings.astype(np.float32)
 
     def _info(self, collision: bool) -> dict[str, Any]:
-        return {"pose": np.array(self.pose, dtype=np.float64), "collision": collision}
+        return {
+            "pose": np.array(self.pose, dtype=np.float64),
+            "readings": self._readings.copy(),
+            "collision": collision,
+        }
 
     def step(self, action):
         assert self.pose is not None, "Call reset before using step method."
@@ -262,7 +268,11 @@ def paper_policy(observation: np.ndarray, rng: np.random.Generator) -> np.ndarra
     visits the poses and issues the motor commands of ``sim.rollout(world, steps, seed)`` (the
     rows of a database): the poses and commands bit for bit, the readings to float32 rounding.
     (The environment's float32 observation could flip the turn decision only for a reading
-    within float32 rounding of 1.) Returns a float64 array of shape ``(2,)``.
+    within float32 rounding of 1.) With ``noise > 0`` pass ``info["readings"]``, not the noisy
+    observation: the generator avoids walls by the true distances, so the poses and commands
+    are again those of the database (its noise is drawn from another stream than the
+    environment's, so the recorded readings differ by the noise). Returns a float64 array of
+    shape ``(2,)``.
     """
     u0, u1 = rng.random(2)
     d, r = sim.behaviour(float(np.min(observation)), u0, u1)
