@@ -188,6 +188,32 @@ def test_corrupted_bytes(tmp_path, rooms2_db):
     assert_refused(path)
 
 
+def test_damaged_compressed_npz(tmp_path):
+    path = tmp_path / "db.npz"
+    np.savez_compressed(path, **good_arrays(2000))
+    data = bytearray(path.read_bytes())
+    data[2_000:2_040] = bytes(b ^ 0x5A for b in data[2_000:2_040])  # inside a deflate stream
+    path.write_bytes(bytes(data))
+    assert_refused(path)
+
+
+def test_float64_beyond_float32_is_refused(tmp_path):
+    arrays = good_arrays()
+    arrays["sensors"] = arrays["sensors"].astype(np.float64) * 1e300  # finite, inf in float32
+    assert_refused(write_npz(tmp_path / "db.npz", **arrays), "sensors", "NaN or inf")
+
+
+def test_poses_outside_the_world_and_readings_beyond_the_range_are_refused(tmp_path):
+    arrays = good_arrays()
+    arrays["poses"] = arrays["poses"].copy()
+    arrays["poses"][41, 0] = 1e30
+    assert_refused(write_npz(tmp_path / "far.npz", **arrays), "pose 41", "outside the 50 x 50")
+    arrays = good_arrays()
+    arrays["sensors"] = arrays["sensors"].copy()
+    arrays["sensors"][7, 2] = -0.5
+    assert_refused(write_npz(tmp_path / "neg.npz", **arrays), "sensors row 7", "[0, 10]")
+
+
 def test_text_file(tmp_path):
     path = tmp_path / "notes.npz"
     path.write_text("these are not the arrays you are looking for\n")
@@ -266,6 +292,13 @@ def test_empty_database(tmp_path):
         json.dumps([1, 2]),
         json.dumps({"seed": 0}),
         json.dumps({"world": {"size": 50, "walls": [[1, 1, 1, 1]]}}),
+        json.dumps({"world": {"size": 50, "walls": []}}),  # no name
+        json.dumps(
+            {
+                "world": {"name": "w", "size": 50, "walls": []},
+                "sensor_layout": {"angles": [-0.6, -0.3, 0, 0.3, 0.6], "max_range": True},
+            }
+        ),
     ],
 )
 def test_bad_meta(tmp_path, meta):

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import json
+import shutil
 import statistics
 
 import pytest
 import torch
 
 import sensorimotor.evaluate as ev
+from conftest import assert_one_line_error
 from sensorimotor.data import load_database
 from sensorimotor.evaluate import baselines, load_run, prediction_error, run_model, split_tensors
 from sensorimotor.models import build_model
@@ -109,3 +111,10 @@ def test_table_gives_mean_and_sd_over_seeds(two_seeds, square_db_path, tmp_path,
     assert rows["s"]["cells"]["square"]["sd"] == 0.0
     assert t["paper_ordering_holds"]["square"]["square"] is None  # rec models missing
     assert "0.005576" in proc.stdout  # the paper's SM value beside ours
+
+
+def test_table_refuses_a_seed_given_twice(two_seeds, square_db_path, tmp_path, cli):
+    copy = tmp_path / "sm0_copy"
+    shutil.copytree(two_seeds / "sm0", copy)
+    proc = cli("table", two_seeds / "sm0", copy, "--data", square_db_path)
+    assert_one_line_error(proc, "sm0_copy", "same world, model and seed")

@@ -225,4 +225,9 @@ def test_cli_plot_bad_input_is_one_line_and_exit_2(cli, tmp_path, rooms1_db_path
     not_db = tmp_path / "text.npz"
     not_db.write_text("hello")
     assert_one_line_error(cli("plot", "perception", "--data", not_db), "text.npz")
+    proc = cli("plot", "perception", "--data", rooms1_db_path, "--view", "inf")
+    assert_one_line_error(proc, "--view")
+    (tmp_path / "w.svg").mkdir()
+    proc = cli("plot", "world", "square", "--out", tmp_path / "w.png", "--svg")
+    assert_one_line_error(proc, "w.svg", "is a folder")
     assert not list(tmp_path.glob("*.png"))

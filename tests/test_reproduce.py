@@ -132,11 +132,13 @@ def test_killed_during_training_resumes_to_the_same_table(smoke, tmp_path):
         (["--scale", "huge"], "unknown scale"),
         (["--seeds", "0"], "--seeds"),
         (["--workers", "0"], "--workers"),
+        (["--device", "tpu"], "unknown device"),
     ],
 )
 def test_bad_options_are_refused(args, needle, tmp_path, cli):
     proc = cli("reproduce", "--out", tmp_path / "o", *args)
     assert_one_line_error(proc, needle)
+    assert not (tmp_path / "o").exists()  # refused before anything is made
 
 
 def test_output_folder_that_is_a_file_is_refused(tmp_path, cli):
@@ -157,6 +159,7 @@ def test_a_failing_worker_names_its_run_and_finished_runs_are_kept(smoke, tmp_pa
     assert "Traceback" not in proc.stderr
     last = proc.stderr.strip().splitlines()[-1]
     assert last.startswith("error: run rooms2__")
+    assert last.count("rooms2__") == 1  # the run named once
     assert "rooms2.npz" in last
     assert {p: p.stat().st_mtime_ns for p in stamp} == stamp  # nothing finished was lost
     bad.unlink()  # the data stage makes it again, byte for byte

@@ -17,6 +17,7 @@ import torch
 import sensorimotor.train as train_mod
 from conftest import assert_one_line_error
 from sensorimotor.data import generate, load_database, save_database
+from sensorimotor.errors import InputError
 from sensorimotor.evaluate import baselines, load_run, model_error, split_tensors
 from sensorimotor.models import build_model
 from sensorimotor.train import (
@@ -275,9 +276,42 @@ def test_corrupt_or_missing_checkpoint_is_refused(square_db_path, tmp_path, cli)
     (run / "model.pt").unlink()
     assert_one_line_error(cli("evaluate", run, "--data", square_db_path), "model.pt", "missing")
     (run / "checkpoint.pt").write_bytes(b"\x00" * 10)
-    proc = cli("train", "s", "--data", square_db_path, "--out", run, "--resume")
+    config = (run / "config.json").read_bytes()
+    proc = cli(
+        "train", "s", "--data", square_db_path, "--out", run, "--resume", "--max-epochs", "3"
+    )
     assert_one_line_error(proc, "checkpoint.pt", "corrupt")
+    assert (run / "config.json").read_bytes() == config  # a failed resume rewrites nothing
     assert_one_line_error(cli("evaluate", tmp_path / "nope", "--data", square_db_path), "not found")
+
+
+def test_damaged_weights_are_refused_not_loaded(square_db_path, tmp_path, cli):
+    """torch does not check its archive's CRCs: a flipped byte would load as wrong weights."""
+    run = tmp_path / "run"
+    train(square_db_path, run, TrainConfig(model="sm", max_epochs=1))
+    for name in ("model.pt", "checkpoint.pt"):
+        data = bytearray((run / name).read_bytes())
+        middle = len(data) // 2
+        data[middle : middle + 8] = bytes(b ^ 0xFF for b in data[middle : middle + 8])
+        (run / name).write_bytes(bytes(data))
+    proc = cli("evaluate", run, "--data", square_db_path)
+    assert_one_line_error(proc, "model.pt", "CRC")
+    proc = cli("train", "sm", "--data", square_db_path, "--out", run, "--resume")
+    assert_one_line_error(proc, "checkpoint.pt", "CRC")
+
+
+def test_weights_of_another_model_or_not_finite_are_refused(square_db_path, tmp_path):
+    s_run, sm_run = tmp_path / "s", tmp_path / "sm"
+    train(square_db_path, s_run, TrainConfig(model="s", max_epochs=1))
+    train(square_db_path, sm_run, TrainConfig(model="sm", max_epochs=1))
+    (sm_run / "model.pt").write_bytes((s_run / "model.pt").read_bytes())
+    with pytest.raises(InputError, match=r"model\.pt: weights do not fit.*Missing key"):
+        load_run(sm_run)
+    state = torch.load(s_run / "model.pt", weights_only=True)
+    next(iter(state.values()))[0] = math.nan
+    torch.save(state, s_run / "model.pt")
+    with pytest.raises(InputError, match=r"model\.pt: non-finite weights in "):
+        load_run(s_run)
 
 
 _ONE_EPOCH = """

@@ -52,6 +52,16 @@ BAD_WORLD_FILES = {
         "no free start position",
     ),
     "name_empty": ("name = ''\nsize = 50\nwalls = []\n", "'name'"),
+    "name_a_path": ("name = '../escape'\nsize = 50\nwalls = []\n", "'name' must be letters"),
+    "name_a_folder": ("name = 'a/b'\nsize = 50\nwalls = []\n", "'name' must be letters"),
+    "name_newline": ("name = 'a\\nb'\nsize = 50\nwalls = []\n", "'name' must be letters"),
+    "size_huge_int": ("size = 1" + "0" * 400 + "\nwalls = []\n", "not a finite number"),
+    "size_huge": ("size = 1e300\nwalls = []\n", "at most 10000"),
+    "wall_huge_int": ("size = 50\nwalls = [[1, 1, 5, 1" + "0" * 400 + "]]\n", "not a finite"),
+    "too_many_walls": (
+        "size = 50\nwalls = [" + ", ".join(["[1, 1, 2, 2]"] * 10_001) + "]\n",
+        "10,001 walls; at most 10,000",
+    ),
 }
 
 
@@ -83,7 +93,7 @@ def test_oblique_walls_are_accepted():
     world = world_from_dict({"size": 50, "walls": [[5, 5, 20, 30], [49.5, 0.5, 30, 45]]})
     assert world.walls.shape == (2, 4)
     assert world.to_dict() == {
-        "name": "<dict>",
+        "name": "dict",
         "size": [50.0, 50.0],
         "walls": [[5.0, 5.0, 20.0, 30.0], [49.5, 0.5, 30.0, 45.0]],
     }
@@ -109,6 +119,12 @@ def test_missing_world_file_and_folder_and_unknown_name(tmp_path):
         load_world(tmp_path)
     with pytest.raises(InputError, match=r"unknown world 'mars'.*square, rooms1, rooms2"):
         load_world("mars")
+
+
+def test_a_world_without_a_name_is_named_after_its_file_made_safe(tmp_path):
+    path = tmp_path / "my world (v2).toml"
+    path.write_text("size = 50\nwalls = []\n")
+    assert load_world(path).name == "my-world-v2"
 
 
 def test_binary_world_file_is_refused(tmp_path):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 from typing import Annotated
@@ -375,7 +376,7 @@ def plot_perception_cmd(
     from sensorimotor.data import load_database
     from sensorimotor.plots import perception_figure, pick_situations
 
-    if not view >= 0:
+    if not (view >= 0 and math.isfinite(view)):
         raise InputError(f"--view must be a non-negative number, got {view}")
     _check_png(out)
     db = load_database(data)

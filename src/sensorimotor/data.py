@@ -14,6 +14,7 @@ import math
 import os
 import tempfile
 import zipfile
+import zlib
 from collections.abc import Callable
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -154,6 +155,8 @@ def atomic_path(path: Path, suffix: str = ""):
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
         raise InputError(f"{path}: folder {folder} does not exist")
+    if path.is_dir():
+        raise InputError(f"{path}: is a folder, cannot be written as a file")
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".tmp{suffix}", dir=folder)
     except OSError as err:
@@ -164,7 +167,10 @@ def atomic_path(path: Path, suffix: str = ""):
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the usual permissions
         yield Path(tmp)
-        os.replace(tmp, path)
+        try:
+            os.replace(tmp, path)
+        except OSError as err:
+            raise InputError(f"{path}: cannot write ({err.strerror})") from None
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
@@ -212,8 +218,8 @@ def load_database(path: str | Path) -> Database:
             meta_raw = npz["meta"]
     except InputError:
         raise
-    except (zipfile.BadZipFile, EOFError) as err:
-        raise InputError(f"{path}: truncated or not an .npz file ({err})") from None
+    except (zipfile.BadZipFile, EOFError, zlib.error) as err:
+        raise InputError(f"{path}: truncated, damaged or not an .npz file ({err})") from None
     except (OSError, ValueError) as err:
         raise InputError(f"{path}: cannot read as .npz ({err})") from None
     n = None
@@ -226,21 +232,48 @@ def load_database(path: str | Path) -> Database:
         n = len(a)
         if not np.issubdtype(a.dtype, np.floating):
             raise InputError(f"{path}: {name!r} must be floating point, got {a.dtype}")
+        with np.errstate(over="ignore"):
+            arrays[name] = a = a.astype(np.float32, copy=False)  # what every stage reads
         if not np.isfinite(a).all():
-            raise InputError(f"{path}: {name!r} contains NaN or inf")
+            raise InputError(f"{path}: {name!r} contains NaN or inf (in float32)")
     if n == 0:
         raise InputError(f"{path}: database is empty")
     try:
         meta = json.loads(str(meta_raw))
-        world_from_dict(meta["world"], f"{path}: meta.world")
+        world = world_from_dict(meta["world"], f"{path}: meta.world")
+        if "name" not in meta["world"]:
+            raise InputError(f"{path}: meta.world has no 'name'")
         _check_layout(meta, arrays["sensors"].shape[1], path)
     except InputError:
         raise
     except (ValueError, KeyError, TypeError) as err:
         raise InputError(f"{path}: 'meta' is not valid database metadata ({err})") from None
-    return Database(
-        *(arrays[k].astype(np.float32, copy=False) for k in ARRAYS), meta=meta, path=path
+    _check_in_world(arrays, world, meta, path)
+    return Database(*(arrays[k] for k in ARRAYS), meta=meta, path=path)
+
+
+def _check_in_world(arrays: dict, world: World, meta: dict, path: Path) -> None:
+    """Poses inside the world and readings within the lasers' range (float32 rounding aside)."""
+    max_range = float(meta.get("sensor_layout", {}).get("max_range", 10.0))
+    xy = arrays["poses"][:, :2]
+    tol = 1e-3
+    outside = (
+        (xy < -tol).any(axis=1) | (xy[:, 0] > world.width + tol) | (xy[:, 1] > world.height + tol)
     )
+    if outside.any():
+        row = int(np.argmax(outside))
+        raise InputError(
+            f"{path}: pose {row} {arrays['poses'][row].tolist()} lies outside the "
+            f"{world.width:g} x {world.height:g} world"
+        )
+    s = arrays["sensors"]
+    bad = ((s < 0) | (s > max_range * (1 + 1e-6))).any(axis=1)
+    if bad.any():
+        row = int(np.argmax(bad))
+        raise InputError(
+            f"{path}: sensors row {row} {s[row].tolist()} is outside [0, {max_range:g}] "
+            "(meta.sensor_layout.max_range)"
+        )
 
 
 def _check_layout(meta: dict, n_sensors: int, path: Path) -> None:
@@ -254,6 +287,7 @@ def _check_layout(meta: dict, n_sensors: int, path: Path) -> None:
         isinstance(angles, list)
         and len(angles) == n_sensors
         and all(isinstance(a, int | float) and math.isfinite(a) for a in angles)
+        and not any(isinstance(v, bool) for v in (*angles, max_range))
         and isinstance(max_range, int | float)
         and math.isfinite(max_range)
         and max_range > 0

@@ -18,6 +18,7 @@ import torch
 from sensorimotor.data import Database, scale_motors, scale_sensors
 from sensorimotor.errors import InputError
 from sensorimotor.models import ModelConfig, SensorimotorEncoder, build_model
+from sensorimotor.runs import load_weights_into, torch_load
 
 CHUNK = 20_000  # steps per forward pass when running a whole split (memory bound, not a result)
 
@@ -108,15 +109,14 @@ def load_run(run_dir: str | Path, device: str | torch.device = "cpu") -> Run:
             raise TypeError("'train' is not a table")
     except (ValueError, KeyError, TypeError, AttributeError) as err:
         raise InputError(f"{cfg_path}: corrupt run config ({err})") from None
+    except OSError as err:
+        raise InputError(f"{cfg_path}: cannot read the run config ({err.strerror})") from None
+    if weights.exists() and not weights.is_file():
+        raise InputError(f"{weights}: is not a file")
     if not weights.is_file():
         raise InputError(f"{weights}: missing checkpoint (training has not finished an epoch)")
-    try:
-        state = torch.load(weights, map_location=device, weights_only=True)
-        model = build_model(model_config).to(device)
-        model.load_state_dict(state)
-    except Exception as err:  # torch raises many kinds on corrupt files
-        msg = str(err).splitlines()[0] if str(err) else err.__class__.__name__
-        raise InputError(f"{weights}: corrupt checkpoint ({msg})") from None
+    model = build_model(model_config).to(device)
+    load_weights_into(model, torch_load(weights, device), weights)
     model.eval()
     return Run(run_dir, model, config)
 

@@ -26,6 +26,7 @@ from matplotlib.figure import Figure
 
 from sensorimotor import events
 from sensorimotor.data import Database, atomic_path
+from sensorimotor.errors import InputError
 from sensorimotor.sim import MAX_RANGE, SENSOR_ANGLES, TURN_THRESHOLD, hit_walls, read_sensors
 from sensorimotor.world import World, point_segment_distance
 
@@ -332,6 +333,9 @@ def save_figure(fig: Figure, path: str | Path, svg: bool = False, dpi: int = 150
     path = Path(path)
     written = []
     targets = [(path, "png")] + ([(path.with_suffix(".svg"), "svg")] if svg else [])
+    for target, _ in targets:  # before writing any: no PNG without its SVG
+        if target.is_dir():
+            raise InputError(f"{target}: is a folder, cannot be written as a file")
     for target, fmt in targets:
         with atomic_path(target, f".{fmt}") as tmp, mpl.rc_context({"svg.hashsalt": "sm"}):
             fig.savefig(tmp, format=fmt, dpi=dpi)

@@ -266,7 +266,9 @@ def _raise_failures(failures, log) -> None:
     first = failures[0]
     more = f" (and {len(failures) - 1} more)" if len(failures) > 1 else ""
     if isinstance(first.error, InputError):
-        raise InputError(f"run {first.name}: {first.error}{more}")
+        msg = str(first.error)  # a stack's error may name its run already
+        msg = msg if msg.startswith(f"{first.name}") else f"{first.name}: {msg}"
+        raise InputError(f"run {msg}{more}")
     raise RuntimeError(f"run {first.name} failed{more}") from first.error
 
 
@@ -356,6 +358,9 @@ def reproduce(
         raise InputError(f"--seeds must be at least 1, got {seeds}")
     if workers < 1:
         raise InputError(f"--workers must be at least 1, got {workers}")
+    from sensorimotor.train import resolve_device
+
+    device = resolve_device(device)  # before any folder is made
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: is a file, not an output folder")
@@ -364,9 +369,6 @@ def reproduce(
             (out / sub).mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise InputError(f"{out}: cannot create the output folder ({err.strerror})") from None
-    from sensorimotor.train import resolve_device
-
-    device = resolve_device(device)
     rep = Reproduction(out, sc, seeds, device, workers)
     t_start = time.perf_counter()
 

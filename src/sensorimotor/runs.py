@@ -12,6 +12,9 @@ import csv
 import io
 import json
 import math
+import warnings
+import zipfile
+import zlib
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -121,6 +124,50 @@ def _torch_save(obj, path: Path) -> None:
         torch.save(obj, f)
 
 
+def check_archive(path: Path) -> None:
+    """InputError naming ``path`` unless it is a whole archive whose every CRC checks."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            damaged = archive.testzip()
+    except (zipfile.BadZipFile, OSError, EOFError, zlib.error) as err:
+        raise InputError(f"{path}: corrupt checkpoint (not a readable archive: {err})") from None
+    if damaged is not None:
+        raise InputError(f"{path}: corrupt checkpoint ({damaged} fails its CRC check)")
+
+
+def torch_load(path: Path, device: str | torch.device = "cpu"):
+    """``torch.load(weights_only=True)`` of a file this package wrote, checked first: torch does
+    not test its archive's CRCs, so a flipped byte would load as wrong weights. InputError
+    naming the file on any damage; load the result into a model with ``load_weights_into``."""
+    check_archive(path)
+    try:
+        with warnings.catch_warnings():  # torch's advice to load unsafely is not for our users
+            warnings.simplefilter("ignore")
+            return torch.load(path, map_location=device, weights_only=True)
+    except Exception as err:  # torch raises many kinds on corrupt files
+        raise InputError(f"{path}: corrupt checkpoint ({_first_lines(err)})") from None
+
+
+def load_weights_into(model: torch.nn.Module, state, path: Path) -> None:
+    """``model.load_state_dict(state)``, refusing weights of another shape or non-finite ones
+    with an InputError naming ``path``."""
+    try:
+        model.load_state_dict(state)
+    except Exception as err:
+        raise InputError(
+            f"{path}: weights do not fit the run's model ({_first_lines(err)})"
+        ) from None
+    bad = [name for name, t in model.state_dict().items() if not torch.isfinite(t).all()]
+    if bad:
+        raise InputError(f"{path}: non-finite weights in {', '.join(bad[:3])}")
+
+
+def _first_lines(err: Exception) -> str:
+    """The gist of an exception in one line (load_state_dict puts its details on line 2)."""
+    lines = [line.strip() for line in str(err).splitlines() if line.strip()]
+    return " ".join(lines[:2])[:300] if lines else err.__class__.__name__
+
+
 def _history_csv(history: list[EpochRecord]) -> str:
     buf = io.StringIO()
     writer = csv.writer(buf)
@@ -176,6 +223,8 @@ def check_run_dir(out: Path, meta: dict, resume: bool) -> None:
                 raise ValueError("missing its model, train or data table")
         except (ValueError, AttributeError) as err:
             raise InputError(f"{cfg_path}: corrupt run config ({err})") from None
+        except OSError as err:
+            raise InputError(f"{cfg_path}: cannot read the run config ({err.strerror})") from None
         for key in ("model", "train", "data"):
             a, b = old.get(key, {}), meta[key]
             if key == "data":
@@ -188,6 +237,8 @@ def check_run_dir(out: Path, meta: dict, resume: bool) -> None:
                 raise InputError(
                     f"{out}: --resume with a different {key} than the run was started with"
                 )
+        if (out / "checkpoint.pt").exists():
+            check_archive(out / "checkpoint.pt")  # before the run's config is rewritten
 
 
 def open_run_dir(out: Path, meta: dict) -> None:
@@ -205,16 +256,17 @@ def load_checkpoint(
     """Restore ``model`` and ``opt`` from ``out/checkpoint.pt``; returns (stopper, history,
     next epoch, training seconds so far). InputError naming the file if it is corrupt."""
     ckpt_path = out / "checkpoint.pt"
+    ckpt = torch_load(ckpt_path, device)
+    if not isinstance(ckpt, dict) or not isinstance(ckpt.get("model"), dict):
+        raise InputError(f"{ckpt_path}: corrupt checkpoint (no model weights in it)")
+    load_weights_into(model, ckpt["model"], ckpt_path)
     try:
-        ckpt = torch.load(ckpt_path, map_location=device, weights_only=True)
-        model.load_state_dict(ckpt["model"])
         opt.load_state_dict(ckpt["optimizer"])
         stopper = EarlyStopping(**ckpt["stopper"])
         history = [EpochRecord(**r) for r in ckpt["history"]]
         return stopper, history, ckpt["epoch"] + 1, ckpt["seconds"]
     except Exception as err:
-        msg = str(err).splitlines()[0] if str(err) else err.__class__.__name__
-        raise InputError(f"{ckpt_path}: corrupt checkpoint ({msg})") from None
+        raise InputError(f"{ckpt_path}: corrupt checkpoint ({_first_lines(err)})") from None
 
 
 def stored_result(out: Path, history: list[EpochRecord]) -> TrainResult | None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from sensorimotor.data import Database
+from sensorimotor.errors import InputError
 from sensorimotor.evaluate import Run, baselines, evaluate_run, mean_sd
 from sensorimotor.models import MODEL_KINDS, MODEL_NAMES
 
@@ -32,7 +33,17 @@ def paper_ordering_holds(cells: dict[str, float]) -> bool | None:
 
 
 def build_table(runs: list[Run], dbs: list[Database], split: str = "test") -> dict:
-    """Evaluate every run on every database: JSON-ready tables, one per training world."""
+    """Evaluate every run on every database: JSON-ready tables, one per training world.
+    InputError if two runs are one seed of one model and world (a seed counted twice)."""
+    seen: dict[tuple, Run] = {}
+    for run in runs:
+        key = (run.trained_on, run.kind, run.config.get("train", {}).get("seed"))
+        if key in seen:
+            raise InputError(
+                f"{run.path}: the same world, model and seed as {seen[key].path} (a seed "
+                "counted twice would shrink the spread)"
+            )
+        seen[key] = run
     per_run = [evaluate_run(run, dbs, split) for run in runs]
     base = {db.meta["world"]["name"]: baselines(db, split) for db in dbs}
     return table_from_results(per_run, base, [db.meta["world"]["name"] for db in dbs])

@@ -8,6 +8,7 @@ events, plots) reads that array and nothing else.
 from __future__ import annotations
 
 import math
+import re
 import tomllib
 from dataclasses import dataclass, field
 from importlib import resources
@@ -19,6 +20,9 @@ from sensorimotor.errors import InputError
 
 BUILTIN_WORLDS = ("square", "rooms1", "rooms2")
 START_CLEARANCE = 1.0  # a start position keeps at least this distance to every wall (units)
+MAX_SIZE = 10_000.0  # units a side: beyond it a world is a typo (the paper's are 50)
+MAX_WALLS = 10_000  # every ray is tested against every wall, every step
+NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]*")  # names run folders: no / or ..
 
 
 @dataclass(frozen=True, eq=False)
@@ -53,6 +57,13 @@ class World:
         return hash(repr(self.to_dict()))
 
 
+def _finite(value: int | float) -> bool:
+    try:
+        return math.isfinite(value)
+    except OverflowError:  # an int too big for a float
+        return False
+
+
 def world_from_dict(data: dict, source: str = "<dict>") -> World:
     """Validate a world description (the TOML keys) and build the World; InputError if bad."""
 
@@ -78,15 +89,17 @@ def world_from_dict(data: dict, source: str = "<dict>") -> World:
     for value in (width, height):
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise fail(f"'size' must be numbers, got {size!r}")
-        if not math.isfinite(value):
+        if not _finite(value):
             raise fail(f"'size' is not a finite number: {size!r}")
-        if value <= 0:
-            raise fail(f"'size' must be positive, got {size!r}")
+        if not 0 < value <= MAX_SIZE:
+            raise fail(f"'size' must be positive and at most {MAX_SIZE:g}, got {size!r}")
     width, height = float(width), float(height)
 
     walls = data["walls"]
     if not isinstance(walls, list):
         raise fail(f"'walls' must be a list of [x0, y0, x1, y1], got {walls!r}")
+    if len(walls) > MAX_WALLS:
+        raise fail(f"{len(walls):,} walls; at most {MAX_WALLS:,} are supported")
     rows = []
     for i, wall in enumerate(walls):
         if not isinstance(wall, list) or len(wall) != 4:
@@ -94,7 +107,7 @@ def world_from_dict(data: dict, source: str = "<dict>") -> World:
         for v in wall:
             if isinstance(v, bool) or not isinstance(v, int | float):
                 raise fail(f"wall {i} must be 4 numbers [x0, y0, x1, y1], got {wall!r}")
-            if not math.isfinite(v):
+            if not _finite(v):
                 raise fail(f"wall {i} has a coordinate that is not a finite number: {wall!r}")
         x0, y0, x1, y1 = (float(v) for v in wall)
         if not (0 <= x0 <= width and 0 <= x1 <= width and 0 <= y0 <= height and 0 <= y1 <= height):
@@ -103,9 +116,14 @@ def world_from_dict(data: dict, source: str = "<dict>") -> World:
             raise fail(f"wall {i} {wall!r} has zero length")
         rows.append((x0, y0, x1, y1))
 
-    name = data.get("name", Path(source).stem)
-    if not isinstance(name, str) or not name:
-        raise fail(f"'name' must be a non-empty string, got {name!r}")
+    # without one, the file's name, made safe ("my world.toml" -> "my-world")
+    stem = re.sub(r"[^A-Za-z0-9_.+-]+", "-", Path(source).stem).strip("_.+-")
+    name = data.get("name", stem or "world")
+    if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name):
+        raise fail(
+            f"'name' must be letters, digits and _ . + - (starting with a letter or digit), "
+            f"got {name!r}"
+        )
     world = World(name, width, height, np.array(rows, dtype=np.float64).reshape(-1, 4))
     if free_start_cells(world).size == 0:
         raise fail(f"no free start position (every point is within {START_CLEARANCE:g} of a wall)")
