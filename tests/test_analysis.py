@@ -344,6 +344,14 @@ def test_analyze_refuses_bad_input_naming_the_file(square_db_path, tmp_path):
         an.analyze_files("raw", square_db_path, tmp_path / "o", fit_data=tmp_path / "x.npz")
 
 
+def test_an_output_in_the_way_is_found_before_anything_is_written(square_db_path, tmp_path):
+    out = tmp_path / "o"
+    (out / "metrics.json").mkdir(parents=True)
+    with pytest.raises(InputError, match=r"metrics\.json: is a folder"):
+        an.analyze_files("raw", square_db_path, out)
+    assert [p.name for p in out.iterdir()] == ["metrics.json"]
+
+
 def test_events_are_those_the_databases_own_lasers_see(tmp_path):
     world = load_world("rooms1")
     layout = SensorLayout(angles=(-1.5, -0.75, 0.0, 0.75, 1.5), max_range=12.0)

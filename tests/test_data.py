@@ -3,6 +3,7 @@ refusal of every damaged file with one line naming it."""
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import zipfile
@@ -212,6 +213,21 @@ def test_poses_outside_the_world_and_readings_beyond_the_range_are_refused(tmp_p
     arrays["sensors"] = arrays["sensors"].copy()
     arrays["sensors"][7, 2] = -0.5
     assert_refused(write_npz(tmp_path / "neg.npz", **arrays), "sensors row 7", "[0, 10]")
+
+
+def test_a_header_claiming_a_huge_array_is_refused(tmp_path):
+    path = tmp_path / "huge.npz"
+    with zipfile.ZipFile(path, "w") as z:
+        for key, value in good_arrays().items():
+            buf = io.BytesIO()
+            if key == "sensors":  # claims 5e11 readings, holds 100 bytes
+                header = {"descr": "<f4", "fortran_order": False, "shape": (10**11, 5)}
+                np.lib.format.write_array_header_1_0(buf, header)
+                buf.write(b"\0" * 100)
+            else:
+                np.save(buf, value)
+            z.writestr(f"{key}.npy", buf.getvalue())
+    assert_refused(path)
 
 
 def test_text_file(tmp_path):

@@ -285,6 +285,14 @@ def test_corrupt_or_missing_checkpoint_is_refused(square_db_path, tmp_path, cli)
     assert_one_line_error(cli("evaluate", tmp_path / "nope", "--data", square_db_path), "not found")
 
 
+def test_a_run_file_in_the_way_is_found_before_anything_is_written(square_db_path, tmp_path, cli):
+    run = tmp_path / "run"
+    (run / "history.csv").mkdir(parents=True)
+    proc = cli("train", "s", "--data", square_db_path, "--out", run, "--max-epochs", "1")
+    assert_one_line_error(proc, "history.csv", "is a folder")
+    assert [p.name for p in run.iterdir()] == ["history.csv"]
+
+
 def test_damaged_weights_are_refused_not_loaded(square_db_path, tmp_path, cli):
     """torch does not check its archive's CRCs: a flipped byte would load as wrong weights."""
     run = tmp_path / "run"

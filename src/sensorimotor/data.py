@@ -222,6 +222,8 @@ def load_database(path: str | Path) -> Database:
         raise InputError(f"{path}: truncated, damaged or not an .npz file ({err})") from None
     except (OSError, ValueError) as err:
         raise InputError(f"{path}: cannot read as .npz ({err})") from None
+    except MemoryError as err:  # a header may claim any shape
+        raise InputError(f"{path}: too large to load ({err})") from None
     n = None
     for name, cols in ARRAYS.items():
         a = arrays[name]

@@ -31,6 +31,9 @@ if TYPE_CHECKING:
     from sensorimotor.train import FusedAdam
 
 
+RUN_FILES = ("config.json", "model.pt", "checkpoint.pt", "history.csv", "result.json")
+
+
 @dataclass(frozen=True)
 class TrainConfig:
     """How one model is trained; the defaults are the paper's (section V.A)."""
@@ -211,6 +214,9 @@ def check_run_dir(out: Path, meta: dict, resume: bool) -> None:
     ``resume``) a run of another model, training config or data."""
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: exists and is not a folder")
+    for name in RUN_FILES:  # found before anything is written, not midway
+        if (out / name).is_dir():
+            raise InputError(f"{out / name}: is a folder, cannot be written as a file")
     cfg_path = out / "config.json"
     if cfg_path.exists() and not resume:
         raise InputError(

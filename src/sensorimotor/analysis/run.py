@@ -123,6 +123,11 @@ def analyze_files(
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: is a file, not an output folder")
+    names = ["pca", "clusters"] + (["clusters_fit"] if fit_db is not None else [])
+    targets = [f"{n}.{ext}" for n in names for ext in ("png", "svg")] + ["pca.npz", "metrics.json"]
+    for target in (out / t for t in targets):  # before anything is written, not midway
+        if target.is_dir():
+            raise InputError(f"{target}: is a folder, cannot be written as a file")
     source = _analyze(run, fit_db, seed) if fit_db is not None else None
     result = _analyze(run, db, seed, source)
     out = _out_dir(out)  # made only once the analysis has succeeded
