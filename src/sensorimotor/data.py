@@ -151,12 +151,8 @@ def check_writable(path: str | Path) -> Path:
 @contextmanager
 def atomic_path(path: Path, suffix: str = ""):
     """Yield a temporary path beside ``path``, renamed onto ``path`` if the block succeeds."""
-    path = Path(path)
+    path = check_writable(path)
     folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise InputError(f"{path}: folder {folder} does not exist")
-    if path.is_dir():
-        raise InputError(f"{path}: is a folder, cannot be written as a file")
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".tmp{suffix}", dir=folder)
     except OSError as err:
@@ -250,14 +246,15 @@ def load_database(path: str | Path) -> Database:
         raise
     except (ValueError, KeyError, TypeError) as err:
         raise InputError(f"{path}: 'meta' is not valid database metadata ({err})") from None
-    _check_in_world(arrays, world, meta, path)
-    return Database(*(arrays[k] for k in ARRAYS), meta=meta, path=path)
+    db = Database(*(arrays[k] for k in ARRAYS), meta=meta, path=path)
+    _check_in_world(db, world)
+    return db
 
 
-def _check_in_world(arrays: dict, world: World, meta: dict, path: Path) -> None:
+def _check_in_world(db: Database, world: World) -> None:
     """Poses inside the world and readings within the lasers' range (float32 rounding aside)."""
-    max_range = float(meta.get("sensor_layout", {}).get("max_range", 10.0))
-    xy = arrays["poses"][:, :2]
+    path, max_range = db.path, db.max_range
+    xy = db.poses[:, :2]
     tol = 1e-3
     outside = (
         (xy < -tol).any(axis=1) | (xy[:, 0] > world.width + tol) | (xy[:, 1] > world.height + tol)
@@ -265,10 +262,10 @@ def _check_in_world(arrays: dict, world: World, meta: dict, path: Path) -> None:
     if outside.any():
         row = int(np.argmax(outside))
         raise InputError(
-            f"{path}: pose {row} {arrays['poses'][row].tolist()} lies outside the "
+            f"{path}: pose {row} {db.poses[row].tolist()} lies outside the "
             f"{world.width:g} x {world.height:g} world"
         )
-    s = arrays["sensors"]
+    s = db.sensors
     bad = ((s < 0) | (s > max_range * (1 + 1e-6))).any(axis=1)
     if bad.any():
         row = int(np.argmax(bad))

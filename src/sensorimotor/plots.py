@@ -25,8 +25,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from sensorimotor import events
-from sensorimotor.data import Database, atomic_path
-from sensorimotor.errors import InputError
+from sensorimotor.data import Database, atomic_path, check_writable
 from sensorimotor.sim import MAX_RANGE, SENSOR_ANGLES, TURN_THRESHOLD, hit_walls, read_sensors
 from sensorimotor.world import World, point_segment_distance
 
@@ -334,8 +333,7 @@ def save_figure(fig: Figure, path: str | Path, svg: bool = False, dpi: int = 150
     written = []
     targets = [(path, "png")] + ([(path.with_suffix(".svg"), "svg")] if svg else [])
     for target, _ in targets:  # before writing any: no PNG without its SVG
-        if target.is_dir():
-            raise InputError(f"{target}: is a folder, cannot be written as a file")
+        check_writable(target)
     for target, fmt in targets:
         with atomic_path(target, f".{fmt}") as tmp, mpl.rc_context({"svg.hashsalt": "sm"}):
             fig.savefig(tmp, format=fmt, dpi=dpi)

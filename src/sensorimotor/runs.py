@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 import torch
 
 from sensorimotor import __version__
-from sensorimotor.data import Database, atomic_path, file_hash
+from sensorimotor.data import Database, atomic_path, check_writable, file_hash
 from sensorimotor.data import write_text_atomic as _write_text
 from sensorimotor.errors import InputError
 from sensorimotor.models import ModelConfig
@@ -214,9 +214,8 @@ def check_run_dir(out: Path, meta: dict, resume: bool) -> None:
     ``resume``) a run of another model, training config or data."""
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: exists and is not a folder")
-    for name in RUN_FILES:  # found before anything is written, not midway
-        if (out / name).is_dir():
-            raise InputError(f"{out / name}: is a folder, cannot be written as a file")
+    for name in RUN_FILES if out.is_dir() else []:  # before anything is written, not midway
+        check_writable(out / name)
     cfg_path = out / "config.json"
     if cfg_path.exists() and not resume:
         raise InputError(

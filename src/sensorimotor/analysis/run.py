@@ -25,7 +25,13 @@ from sensorimotor.analysis.representation import (
     analyze_representation,
     raw_representation,
 )
-from sensorimotor.data import Database, atomic_path, load_database, write_text_atomic
+from sensorimotor.data import (
+    Database,
+    atomic_path,
+    check_writable,
+    load_database,
+    write_text_atomic,
+)
 from sensorimotor.errors import InputError
 from sensorimotor.sim import read_sensors
 
@@ -125,9 +131,8 @@ def analyze_files(
         raise InputError(f"{out}: is a file, not an output folder")
     names = ["pca", "clusters"] + (["clusters_fit"] if fit_db is not None else [])
     targets = [f"{n}.{ext}" for n in names for ext in ("png", "svg")] + ["pca.npz", "metrics.json"]
-    for target in (out / t for t in targets):  # before anything is written, not midway
-        if target.is_dir():
-            raise InputError(f"{target}: is a folder, cannot be written as a file")
+    for target in targets if out.is_dir() else []:  # before anything is written, not midway
+        check_writable(out / target)
     source = _analyze(run, fit_db, seed) if fit_db is not None else None
     result = _analyze(run, db, seed, source)
     out = _out_dir(out)  # made only once the analysis has succeeded
