@@ -17,7 +17,7 @@ from sensorimotor.analysis.probes import KNN_K
 from sensorimotor.analysis_plots import plot_clusters, plot_pca, plot_transfer
 from sensorimotor.data import generate, load_database, save_database
 from sensorimotor.errors import InputError
-from sensorimotor.sim import SensorLayout
+from sensorimotor.sim import SensorLayout, read_sensors
 from sensorimotor.world import load_world
 
 
@@ -372,3 +372,40 @@ def test_analyze_refuses_clusters_fitted_on_another_sensor_layout(square_db_path
     save_database(replace(db, meta=meta), other)
     with pytest.raises(InputError, match="sensor layout"):
         an.analyze_files("raw", square_db_path, tmp_path / "o", fit_data=other)
+
+
+def test_nothing_in_view_is_the_truth_on_noisy_data(tmp_path):
+    world = load_world("square")
+    path = tmp_path / "noisy.npz"
+    save_database(generate(world, 20_000, seed=3, noise_std=0.5), path)
+    events = an.analyze_files("raw", path, tmp_path / "o").metrics["analysis"]["events"]
+    db = load_database(path)
+    test = db.take("test")
+    truth = ev.nothing_in_view(read_sensors(world, test.poses, db.layout)).sum()
+    assert events["nothing"]["count"] == truth
+    assert ev.nothing_in_view(test.sensors).sum() != truth  # the noisy readings would differ
+
+
+def test_best_cluster_is_chosen_by_f1_not_by_precision():
+    # cluster 0: one step, an event (precision 1, F1 0.18); cluster 1: 9 of 10 (F1 0.9)
+    labels = np.array([0] + [1] * 10 + [2] * 10)
+    event = np.array([1] + [1] * 9 + [0] + [0] * 10, bool)
+    got = an.event_scores(labels, event)
+    assert got["cluster"] == 1
+    assert got["f1"] == pytest.approx(0.9)
+
+
+def test_a_probe_is_scored_on_steps_it_was_not_fitted_on():
+    # 80 random features for 200 steps: a fit scored on its own steps would reach R^2 ~ 0.8
+    rng = np.random.default_rng(0)
+    z, target = rng.normal(size=(200, 80)), rng.normal(size=200)
+    assert an.probe_r2(z, target, seed=0) < 0.1
+
+
+def test_heading_probes_are_not_swapped():
+    rng = np.random.default_rng(0)
+    poses = np.column_stack([rng.uniform(1, 49, (4000, 2)), rng.uniform(-np.pi, np.pi, 4000)])
+    z = np.column_stack([np.cos(poses[:, 2]), rng.normal(size=4000)])  # knows cos only
+    got = an.position_scores(z, poses, seed=0)
+    assert got["r2_cos_heading"] > 0.99
+    assert got["r2_sin_heading"] < 0.1

@@ -23,7 +23,7 @@ from sensorimotor.data import (
     split_slice,
 )
 from sensorimotor.errors import InputError
-from sensorimotor.world import load_world
+from sensorimotor.world import load_world, world_from_dict
 
 
 @pytest.fixture(scope="module")
@@ -342,3 +342,14 @@ def test_database_constructed_in_memory_has_no_path(rooms2_db):
     db = Database(rooms2_db.sensors, rooms2_db.motors, rooms2_db.poses, rooms2_db.meta)
     assert db.path is None
     assert len(db) == 3_000
+
+
+def test_a_non_square_database_round_trips_and_its_poses_are_checked_by_height(tmp_path):
+    world = world_from_dict({"name": "wide", "size": [40, 30], "walls": [[20, 0, 20, 20]]})
+    db = generate(world, 2000, seed=0)
+    assert db.poses[:, 0].max() > 30  # it wanders beyond y's bound in x
+    path = save_database(db, tmp_path / "wide.npz")
+    assert np.array_equal(load_database(path).poses, db.poses)
+    arrays = {k: v for k, v in np.load(path, allow_pickle=False).items()}
+    arrays["poses"][5, 1] = 35.0  # y beyond the height, x within
+    assert_refused(write_npz(tmp_path / "tall.npz", **arrays), "pose 5", "outside the 40 x 30")

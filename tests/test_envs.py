@@ -293,3 +293,11 @@ def test_render_without_a_mode_warns_and_returns_none():
     env.reset(seed=0)
     with pytest.warns(UserWarning, match="render_mode"):
         assert env.render() is None
+
+
+def test_a_start_pose_is_checked_against_the_worlds_own_width_and_height():
+    env = LaserWorldEnv(world_from_dict({"name": "wide", "size": [50, 20], "walls": []}))
+    _, info = env.reset(options={"pose": (45.0, 10.0, 0.0)})  # x beyond the height: inside
+    assert info["pose"][0] == 45.0
+    with pytest.raises(ValueError, match="pose"):
+        env.reset(options={"pose": (10.0, 30.0, 0.0)})  # y beyond the height

@@ -6,15 +6,18 @@ import json
 import shutil
 import statistics
 
+import numpy as np
 import pytest
 import torch
 
 import sensorimotor.evaluate as ev
 from conftest import assert_one_line_error
-from sensorimotor.data import load_database
+from sensorimotor.data import generate, load_database
 from sensorimotor.evaluate import baselines, load_run, prediction_error, run_model, split_tensors
 from sensorimotor.models import build_model
+from sensorimotor.sim import SensorLayout
 from sensorimotor.train import TrainConfig, train
+from sensorimotor.world import load_world
 
 
 def test_error_sums_over_sensors_and_averages_over_steps():
@@ -24,6 +27,15 @@ def test_error_sums_over_sensors_and_averages_over_steps():
     assert prediction_error(pred, sensors) == pytest.approx(1.0)  # not 1/5: a sum, not a mean
     pred[0, 0] = 1.0  # step 0 now right
     assert prediction_error(pred, sensors) == pytest.approx(2 / 3)
+
+
+def test_splits_are_scaled_by_the_databases_own_range():
+    layout = SensorLayout(max_range=20.0)
+    db = generate(load_world("rooms1"), 3000, seed=0, layout=layout)
+    sensors, motors = split_tensors(db, "train")
+    assert torch.equal(sensors, torch.from_numpy(db.take("train").sensors / np.float32(20.0)))
+    assert 0.5 < float(sensors.max()) <= 1.0  # readings beyond 10 exist and stay within [0, 1]
+    assert motors.shape == (len(sensors), 2)
 
 
 def test_baselines_on_a_real_database(square_db_path):
@@ -118,3 +130,13 @@ def test_table_refuses_a_seed_given_twice(two_seeds, square_db_path, tmp_path, c
     shutil.copytree(two_seeds / "sm0", copy)
     proc = cli("table", two_seeds / "sm0", copy, "--data", square_db_path)
     assert_one_line_error(proc, "sm0_copy", "same world, model and seed")
+
+
+def test_paper_ordering_needs_rec_sm_below_sm_below_both_others():
+    from sensorimotor.tables import paper_ordering_holds
+
+    assert paper_ordering_holds({"rec-sm": 1, "sm": 2, "rec-s": 3, "s": 4}) is True
+    assert paper_ordering_holds({"rec-sm": 1, "sm": 2, "rec-s": 4, "s": 3}) is True
+    assert paper_ordering_holds({"rec-sm": 1, "sm": 2, "rec-s": 1.5, "s": 3}) is False  # SM > Rec-S
+    assert paper_ordering_holds({"rec-sm": 2.5, "sm": 2, "rec-s": 3, "s": 4}) is False
+    assert paper_ordering_holds({"rec-sm": 1, "sm": 2, "s": 4}) is None

@@ -230,3 +230,19 @@ def test_points_in_view_is_the_same_in_chunks(monkeypatch):
     monkeypatch.setattr(ev, "CHUNK", 7)
     np.testing.assert_array_equal(ev.points_in_view(world, poses, points), whole)
     assert whole.any()
+
+
+def test_a_one_sided_fan_sees_only_its_own_side():
+    world = make_world([], size=50)
+    corner = [[0.0, 0.0]]
+    left = toward(5, 5, 0, 0, offset=-0.5)  # the corner 0.5 rad to the left of the heading
+    right = toward(5, 5, 0, 0, offset=0.5)
+    seen = ev.points_in_view(world, np.array([left, right]), corner, angles=np.array([0.0, 1.0]))
+    assert seen[:, 0].tolist() == [True, False]
+
+
+def test_a_wall_just_short_of_a_corner_hides_it():
+    pose, corner = np.array([toward(5, 5, 0, 0)]), [[0.0, 0.0]]
+    blocked = make_world([[0.2, 0.4, 0.4, 0.2]], size=50)  # crosses the sight line 0.4 early
+    assert not ev.points_in_view(blocked, pose, corner)[0, 0]
+    assert ev.points_in_view(make_world([], size=50), pose, corner)[0, 0]

@@ -46,9 +46,15 @@ def test_verdict_is_none_when_a_number_is_missing():
     assert _verdict([None, 0.2], False) is None
 
 
-def fake_report(rec_s_rooms1: tuple[float, float], fit_f1: float, to_f1: float):
+def fake_report(
+    rec_s_rooms1: tuple[float, float] = (0.057, 0.0002),
+    fit_f1: float = 0.29,
+    to_f1: float = 0.33,
+    square: dict[str, dict[str, float]] | None = None,
+):
     """A report of 5 seeds a cell, Rec-S on Rooms1 at (mean, sd), and a Rooms1 wall-end cluster
-    of F1 ``fit_f1`` transferred to Rooms2 at F1 ``to_f1`` (precision = recall = F1)."""
+    of F1 ``fit_f1`` transferred to Rooms2 at F1 ``to_f1`` (precision = recall = F1). Every
+    analysis number is 0.5 but those ``square`` gives: {model: {number: value}}."""
     means = {"s": 0.058, "sm": 0.013, "rec-s": 0.057, "rec-sm": 0.009}
     cells = {
         m: {w: {"mean": v, "sd": 0.0002, "n": 5} for w in ("square", "rooms1")}
@@ -77,6 +83,8 @@ def fake_report(rec_s_rooms1: tuple[float, float], fit_f1: float, to_f1: float):
     per_seed = {name: [0.5] for name in names}
     numbers = {w: {m: per_seed for m in ("raw", *means)} for w in ("square", "rooms1")}
     numbers["rooms1"]["raw"] = {**per_seed, "wall_end_f1": [0.10]}
+    for model, values in (square or {}).items():
+        numbers["square"][model] = {**per_seed, **{k: [v] for k, v in values.items()}}
     claims = paper_claims(SimpleNamespace(table=table, transfers=transfers), numbers)
     return {text.split(":")[0]: (evidence, verdict) for text, evidence, verdict in claims}
 
@@ -142,3 +150,37 @@ def test_markdown_and_html_carry_the_same_blocks(tmp_path):
     assert html.count("data:image/png;base64,") == 1
     assert html.count("<td>") == 2
     assert html.count("<th>") == 2
+
+
+def verdict(claim: str, **square) -> bool | None:
+    return fake_report(square=square)[claim][1]
+
+
+def test_the_corner_claim_needs_both_motor_models_above_s_and_raw():
+    claim = "Motors grow a corner cluster"
+    f1 = {m: {"corner_f1": 0.2} for m in ("raw", "s", "rec-s")}
+    assert verdict(claim, **f1, sm=dict(corner_f1=0.6), **{"rec-sm": dict(corner_f1=0.6)})
+    assert not verdict(claim, **f1, sm=dict(corner_f1=0.25), **{"rec-sm": dict(corner_f1=0.6)})
+    assert not verdict(claim, **f1, sm=dict(corner_f1=0.6), **{"rec-sm": dict(corner_f1=0.25)})
+    no_corner = "No corner cluster without motors"
+    assert verdict(no_corner, **f1, sm=dict(corner_f1=0.6), **{"rec-sm": dict(corner_f1=0.6)})
+    f1["rec-s"] = {"corner_f1": 0.55}
+    assert not verdict(no_corner, **f1, sm=dict(corner_f1=0.6), **{"rec-sm": dict(corner_f1=0.9)})
+
+
+def test_the_position_claim_fails_if_any_model_decodes_x_or_y():
+    claim = "No global notion of position"
+    blind = {m: {"r2_x": 0.0, "r2_y": 0.02} for m in ("s", "sm", "rec-s", "rec-sm")}
+    assert verdict(claim, **blind)
+    assert not verdict(claim, **{**blind, "s": {"r2_x": 0.5, "r2_y": 0.0}})
+    assert not verdict(claim, **{**blind, "rec-sm": {"r2_x": 0.0, "r2_y": 0.1}})
+
+
+def test_the_memory_claims_need_their_clusters_and_r2_margins():
+    claim, sharper = "Memory", "Motors sharpen memory"
+    base = {"s": {"behind_r2": 0.1}, "rec-s": {"behind_r2": 0.5}}
+    assert verdict(claim, **base, **{"rec-sm": dict(nothing_clusters=2, behind_r2=0.6)})
+    assert not verdict(claim, **base, **{"rec-sm": dict(nothing_clusters=1, behind_r2=0.6)})
+    assert not verdict(claim, **base, **{"rec-sm": dict(nothing_clusters=3, behind_r2=0.15)})
+    assert verdict(sharper, **base, **{"rec-sm": dict(behind_r2=0.6)})
+    assert not verdict(sharper, **base, **{"rec-sm": dict(behind_r2=0.45)})

@@ -99,6 +99,13 @@ def test_early_stopping_rule_on_a_script():
     assert (stopper.best_epoch, stopper.lowest) == (7, 0.90)
 
 
+def test_an_error_at_exactly_the_threshold_is_not_an_improvement():
+    stopper = EarlyStopping(patience=10, min_ratio=0.95)
+    stopper.update(0, 1.0)
+    assert stopper.update(1, 0.95) == (False, True)  # "below 0.95 x", not "at most"; lowest yet
+    assert stopper.waited == 1
+
+
 def test_train_stops_at_the_scripted_epoch_and_keeps_the_best_weights(tmp_path, monkeypatch):
     db = tmp_path / "sq.npz"
     save_database(generate(load_world("square"), 3000, seed=0), db)

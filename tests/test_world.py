@@ -153,3 +153,14 @@ def test_free_start_cells_keep_their_distance(name):
     assert len(cells) > 1000
     dist = point_segment_distance(world.segments, cells[:, 0], cells[:, 1]).min(axis=1)
     assert dist.min() >= 1.0
+
+
+def test_a_wide_world_checks_x_against_its_width_and_y_against_its_height():
+    wide = {"name": "wide", "size": [50, 20]}
+    assert world_from_dict({**wide, "walls": [[45, 1, 45, 10]]}).width == 50  # x in 20..50
+    with pytest.raises(InputError, match="lies outside the 50 x 20 world"):
+        world_from_dict({**wide, "walls": [[1, 25, 5, 25]]})  # y beyond 20
+    cells = free_start_cells(world_from_dict({**wide, "walls": []}))
+    assert cells[:, 0].max() > 45  # the grid spans 50 x 20
+    assert cells[:, 1].max() < 19
+    assert cells[:, :2].min() >= 1
