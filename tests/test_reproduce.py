@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import re
 import shutil
 import signal
@@ -124,6 +125,40 @@ def test_killed_during_training_resumes_to_the_same_table(smoke, tmp_path):
     again = _reproduce(out)
     assert again.returncode == 0, again.stderr[-3000:]
     assert _table_numbers(out) == _table_numbers(smoke)
+
+
+def test_ctrl_c_stops_every_worker_at_once_and_says_how_to_go_on(tmp_path):
+    out = tmp_path / "interrupted"
+    proc = subprocess.Popen(
+        _command(out),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    deadline = time.time() + 300
+    while time.time() < deadline and not list((out / "runs").glob("*/checkpoint.pt")):
+        time.sleep(0.05)
+    assert proc.poll() is None, "finished before it could be interrupted"
+    os.killpg(proc.pid, signal.SIGINT)  # as a terminal's Ctrl-C: the parent and its workers
+    t0 = time.time()
+    _, err = proc.communicate(timeout=60)
+    assert time.time() - t0 < 15  # not after the queued trainings
+    assert proc.returncode == 130
+    assert err.strip().splitlines()[-1].startswith("interrupted: ")
+    assert "Traceback" not in err
+    deadline = time.time() + 5  # an exited child may linger a moment before it is reaped
+    while time.time() < deadline and _group_alive(proc.pid):
+        time.sleep(0.1)
+    assert not _group_alive(proc.pid), "a process of the run outlived it"
+
+
+def _group_alive(pgid: int) -> bool:
+    try:
+        os.killpg(pgid, 0)
+    except ProcessLookupError:
+        return False
+    return True
 
 
 @pytest.mark.parametrize(

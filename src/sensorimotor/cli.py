@@ -492,6 +492,9 @@ def _root(
     """Representation learning by sensorimotor prediction (Kulak & Garcia Ortiz), reproduced."""
 
 
+INTERRUPTED = 130  # the shell's code for a process ended by SIGINT
+
+
 def main() -> None:
     """Entry point: every user error (a bad file, a bad option) is one line on stderr, exit 2."""
     # typer carries click's exceptions (vendored in recent releases): find them by name
@@ -512,6 +515,11 @@ def main() -> None:
         print(f"error: {err.format_message()}", file=sys.stderr)
         sys.exit(err.exit_code)
     except (typer.Abort, KeyboardInterrupt):
-        print("aborted", file=sys.stderr)
-        sys.exit(130)
+        rc = INTERRUPTED
+    if rc == INTERRUPTED:  # typer turns Ctrl-C into this exit code
+        print(
+            "interrupted: what finished is kept and nothing is half-written; run the same command "
+            "again to go on (train: add --resume)",
+            file=sys.stderr,
+        )
     sys.exit(rc if isinstance(rc, int) else 0)

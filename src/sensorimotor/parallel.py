@@ -58,7 +58,21 @@ def _init_worker(progress_queue, threads: int) -> None:
     global _progress_queue
     _progress_queue = progress_queue
     _die_with_parent()
+    # Ctrl-C reaches every process of the terminal's group; the parent alone answers it (by
+    # stopping the workers), else each worker would fail its job and go on to the next one.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     limit_threads(threads)
+
+
+def _stop_workers(pool: ProcessPoolExecutor) -> None:
+    """Drop the queued jobs and end the running ones now. What they finished is on disk (every
+    file is written whole and renamed), so a rerun goes on from there."""
+    processes = list((pool._processes or {}).values())  # no public handle on the workers
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        process.terminate()
+    for process in processes:
+        process.join(timeout=10)
 
 
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
@@ -140,19 +154,23 @@ def run_jobs(
             initargs=(progress_queue, threads),
         ) as pool:
             pending = {pool.submit(job.fn, *job.args): job for job in jobs}
-            while pending:
-                done, _ = wait(pending, return_when=FIRST_COMPLETED)
-                for future in done:
-                    job = pending.pop(future)
-                    try:
-                        results[job.name] = future.result()
-                        if on_done is not None:
-                            on_done(job.name, results[job.name])
-                        more = [] if then is None else then(job.name, results[job.name])
-                    except Exception as err:
-                        failures.append(JobFailure(job.name, err))
-                        continue
-                    pending.update({pool.submit(j.fn, *j.args): j for j in more})
+            try:
+                while pending:
+                    done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                    for future in done:
+                        job = pending.pop(future)
+                        try:
+                            results[job.name] = future.result()
+                            if on_done is not None:
+                                on_done(job.name, results[job.name])
+                            more = [] if then is None else then(job.name, results[job.name])
+                        except Exception as err:
+                            failures.append(JobFailure(job.name, err))
+                            continue
+                        pending.update({pool.submit(j.fn, *j.args): j for j in more})
+            except KeyboardInterrupt:
+                _stop_workers(pool)
+                raise
     finally:
         stop.set()
         printer.join()
