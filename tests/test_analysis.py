@@ -323,6 +323,18 @@ def test_analyze_transfer_fits_on_one_world_and_applies_to_another(
     assert "wall_end" in m["analysis"]["events"]
 
 
+def test_an_analysis_into_a_used_folder_leaves_none_of_the_earlier_files(
+    square_db_path, rooms1_db_path, tmp_path
+):
+    out = tmp_path / "t"
+    an.analyze_files("raw", rooms1_db_path, out, fit_data=square_db_path, svg=True)
+    assert (out / "clusters_fit.svg").exists()
+    res = an.analyze_files("raw", square_db_path, out)
+    names = sorted(p.name for p in out.iterdir())
+    assert names == ["clusters.png", "metrics.json", "pca.npz", "pca.png"]
+    assert sorted(p.name for p in res.files) == names
+
+
 def test_cli_analyze_bad_input_is_one_line(cli, tmp_path):
     missing = tmp_path / "nope.npz"
     proc = cli("analyze", "raw", "--data", missing, "--out", tmp_path / "o")

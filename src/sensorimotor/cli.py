@@ -418,7 +418,9 @@ def analyze(
 
     RUN is a run folder or `raw` (the readings themselves); the test split of --data is analysed;
     with --fit-data, PCA and k-means are fitted on that database and applied to --data (transfer).
-    Writes pca.png, clusters.png (and SVGs), pca.npz and metrics.json into --out.
+    Writes pca.png, clusters.png (with --fit-data also clusters_fit.png: the clusters on the
+    fitting world), their SVGs, pca.npz and metrics.json into --out, and removes those files of
+    an earlier analysis there that this one does not write.
     """
     from sensorimotor.analysis import analyze_files, summary_lines
 

@@ -54,6 +54,12 @@ def representation_of(run, db: Database, split: str = SPLIT) -> np.ndarray:
     return representation(run, db, split)
 
 
+# Every file an analysis may write; those it does not write this time are removed from its folder.
+OUTPUTS = tuple(
+    f"{name}.{ext}" for name in ("pca", "clusters", "clusters_fit") for ext in ("png", "svg")
+) + ("pca.npz", "metrics.json")
+
+
 def truth_readings(db: Database, split: str = SPLIT) -> np.ndarray:
     """Noiseless readings of a split: the stored ones, recomputed at the poses if noise was added
     (so "nothing in view" is the truth, not a noisy guess)."""
@@ -129,9 +135,7 @@ def analyze_files(
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: is a file, not an output folder")
-    names = ["pca", "clusters"] + (["clusters_fit"] if fit_db is not None else [])
-    targets = [f"{n}.{ext}" for n in names for ext in ("png", "svg")] + ["pca.npz", "metrics.json"]
-    for target in targets if out.is_dir() else []:  # before anything is written, not midway
+    for target in OUTPUTS if out.is_dir() else []:  # before anything is written, not midway
         check_writable(out / target)
     source = _analyze(run, fit_db, seed) if fit_db is not None else None
     result = _analyze(run, db, seed, source)
@@ -193,6 +197,8 @@ def analyze_files(
     path = out / "metrics.json"
     write_text_atomic(path, json.dumps(metrics, indent=2) + "\n")
     files.append(path)
+    for stale in set(OUTPUTS) - {f.name for f in files}:  # an earlier analysis' in this folder
+        (out / stale).unlink(missing_ok=True)
     return AnalyzeResult(metrics, files)
 
 
