@@ -353,3 +353,11 @@ def test_a_non_square_database_round_trips_and_its_poses_are_checked_by_height(t
     arrays = {k: v for k, v in np.load(path, allow_pickle=False).items()}
     arrays["poses"][5, 1] = 35.0  # y beyond the height, x within
     assert_refused(write_npz(tmp_path / "tall.npz", **arrays), "pose 5", "outside the 40 x 30")
+
+
+def test_a_database_whose_world_takes_a_builtin_name_with_other_walls_is_refused(tmp_path):
+    arrays = good_arrays()
+    meta = json.loads(str(arrays["meta"]))
+    meta["world"]["walls"] = [[10.0, 10.0, 10.0, 20.0]]  # named "square", walls of another
+    arrays["meta"] = np.array(json.dumps(meta))
+    assert_refused(write_npz(tmp_path / "fake.npz", **arrays), "meta.world", "other walls")

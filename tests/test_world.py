@@ -164,3 +164,17 @@ def test_a_wide_world_checks_x_against_its_width_and_y_against_its_height():
     assert cells[:, 0].max() > 45  # the grid spans 50 x 20
     assert cells[:, 1].max() < 19
     assert cells[:, :2].min() >= 1
+
+
+def test_a_world_file_may_not_take_a_builtin_name_with_other_walls(tmp_path):
+    path = tmp_path / "mine.toml"
+    path.write_text('name = "square"\nsize = 50\nwalls = [[10, 10, 10, 20]]\n')
+    with pytest.raises(InputError, match="name of a built-in world with other walls") as info:
+        load_world(path)
+    assert str(path) in str(info.value)
+    unnamed = tmp_path / "square.toml"  # named after its file
+    unnamed.write_text("size = 50\nwalls = [[10, 10, 10, 20]]\n")
+    with pytest.raises(InputError, match="'square'"):
+        load_world(unnamed)
+    path.write_text('name = "square"\nsize = 50\nwalls = []\n')  # the built-in Square itself
+    assert load_world(path) == load_world("square")

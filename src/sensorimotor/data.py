@@ -25,7 +25,7 @@ import numpy as np
 from sensorimotor import __version__
 from sensorimotor.errors import InputError
 from sensorimotor.sim import DEFAULT_LAYOUT, SensorLayout, rollout
-from sensorimotor.world import World, world_from_dict
+from sensorimotor.world import World, check_builtin_name, world_from_dict
 
 SPLITS = {"train": (0.0, 0.8), "val": (0.8, 0.9), "test": (0.9, 1.0)}
 ARRAYS = {"sensors": 5, "motors": 2, "poses": 3}  # name -> columns
@@ -241,6 +241,7 @@ def load_database(path: str | Path) -> Database:
         world = world_from_dict(meta["world"], f"{path}: meta.world")
         if "name" not in meta["world"]:
             raise InputError(f"{path}: meta.world has no 'name'")
+        check_builtin_name(world, f"{path}: meta.world")
         _check_layout(meta, arrays["sensors"].shape[1], path)
     except InputError:
         raise

@@ -156,7 +156,19 @@ def load_world(spec: str | Path) -> World:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise InputError(f"{path}: not valid TOML ({err})") from None
-    return world_from_dict(data, str(path))
+    world = world_from_dict(data, str(path))
+    check_builtin_name(world, str(path))
+    return world
+
+
+def check_builtin_name(world: World, source: str) -> None:
+    """Refuse a world that takes a built-in world's name but not its walls: runs are named, and
+    set beside the paper's numbers, by the world's name."""
+    if world.name in BUILTIN_WORLDS and world != load_world(world.name):
+        raise InputError(
+            f"{source}: {world.name!r} is the name of a built-in world with other walls; give "
+            "this world a name of its own"
+        )
 
 
 def point_segment_distance(segments: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:

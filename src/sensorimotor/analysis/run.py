@@ -55,9 +55,11 @@ def representation_of(run, db: Database, split: str = SPLIT) -> np.ndarray:
 
 
 # Every file an analysis may write; those it does not write this time are removed from its folder.
-OUTPUTS = tuple(
-    f"{name}.{ext}" for name in ("pca", "clusters", "clusters_fit") for ext in ("png", "svg")
-) + ("pca.npz", "metrics.json")
+OUTPUTS = (
+    *(f"{name}.{ext}" for name in ("pca", "clusters", "clusters_fit") for ext in ("png", "svg")),
+    "pca.npz",
+    "metrics.json",
+)
 
 
 def truth_readings(db: Database, split: str = SPLIT) -> np.ndarray:
