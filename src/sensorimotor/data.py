@@ -204,6 +204,9 @@ def load_database(path: str | Path) -> Database:
     try:
         # our own file handle: np.load leaks its own when a damaged zip makes it raise
         with open(path, "rb") as f:
+            if not f.read(6).startswith((b"PK", b"\x93NUMPY")):  # else numpy calls it a pickle
+                raise InputError(f"{path}: not an .npz file (no zip archive inside)")
+            f.seek(0)
             npz = np.load(f, allow_pickle=False)
             if not isinstance(npz, np.lib.npyio.NpzFile):  # a bare .npy array
                 raise InputError(f"{path}: not an .npz file (a single .npy array)")
