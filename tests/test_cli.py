@@ -86,6 +86,19 @@ def test_help(cli):
         assert option in proc.stdout, option
 
 
+def test_reproduce_help_states_what_each_scale_sets(cli):
+    from sensorimotor.reproduce import SCALES
+
+    text = " ".join(cli("reproduce", "--help").stdout.split())  # unwrapped
+    text = text.replace("│ ", "").replace(" │", "")
+    for sc in SCALES.values():
+        assert f"{sc.name}: " in text
+        assert f"{sc.steps:,} steps" in text or f"{sc.steps:,}-step" in text, sc.name
+        assert f"{sc.seeds} seed" in text, sc.name
+    for kind, cap in SCALES["quick"].max_epochs.items():
+        assert str(cap) in text, kind
+
+
 def test_version(cli):
     proc = cli("--version")
     assert proc.returncode == 0

@@ -233,7 +233,7 @@ def test_a_header_claiming_a_huge_array_is_refused(tmp_path):
 def test_text_file(tmp_path):
     path = tmp_path / "notes.npz"
     path.write_text("these are not the arrays you are looking for\n")
-    with pytest.raises(InputError, match="not an .npz file") as info:
+    with pytest.raises(InputError, match=r"not an \.npz file") as info:
         load_database(path)
     assert "pickle" not in str(info.value)  # numpy's guess for an unknown file, with unsafe advice
 

@@ -213,6 +213,9 @@ def test_actions_outside_the_box_are_clipped_and_nan_refused():
     assert info["pose"][0] == pytest.approx(26.0)
     with pytest.raises(ValueError, match="finite"):
         env.step(np.array([np.nan, 0.0]))
+    for bad in (0.5, [0.5, 0.1, 0.0]):
+        with pytest.raises(ValueError, match=r"action must be \(d, r\), 2 numbers"):
+            env.step(bad)
 
 
 # --------------------------------------------------------------- the paper's behaviour

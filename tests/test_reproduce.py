@@ -63,6 +63,8 @@ def test_smoke_report_has_every_stage_and_a_full_table(smoke):
         assert len(numbers) == 12  # 4 models x 3 test worlds
         assert all(0 < x < 10 for x in numbers)
     assert md.count("### Trained on") == 3
+    assert "**Note.** A smoke test of the pipeline" in md  # its verdicts mean nothing
+    assert "<b>Note.</b> A smoke test of the pipeline" in html
     # every image of the Markdown report exists and loads; the HTML embeds them all
     images = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", md)
     assert len(images) >= 10

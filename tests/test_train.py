@@ -290,6 +290,21 @@ def test_corrupt_or_missing_checkpoint_is_refused(square_db_path, tmp_path, cli)
     assert_one_line_error(proc, "checkpoint.pt", "corrupt")
     assert (run / "config.json").read_bytes() == config  # a failed resume rewrites nothing
     assert_one_line_error(cli("evaluate", tmp_path / "nope", "--data", square_db_path), "not found")
+    proc = cli("evaluate", square_db_path, "--data", square_db_path)  # a file, not a folder
+    assert_one_line_error(proc, str(square_db_path), "is a file, not a run folder")
+
+
+def test_resume_with_other_data_or_settings_says_what_changed(
+    square_db_path, rooms1_db_path, tmp_path
+):
+    run = tmp_path / "run"
+    train(square_db_path, run, TrainConfig(model="s", max_epochs=1))
+    with pytest.raises(InputError, match="other data") as info:
+        train(rooms1_db_path, run, TrainConfig(model="s", max_epochs=2), resume=True)
+    assert str(rooms1_db_path) in str(info.value)
+    assert str(square_db_path) in str(info.value)
+    with pytest.raises(InputError, match=r"another train setting .*lr: 0\.001 -> 0\.01"):
+        train(square_db_path, run, TrainConfig(model="s", max_epochs=2, lr=0.01), resume=True)
 
 
 def test_a_run_file_in_the_way_is_found_before_anything_is_written(square_db_path, tmp_path, cli):

@@ -105,8 +105,12 @@ def train(
     seed: Annotated[
         int, typer.Option(min=0, max=MAX_SEED, help="Seed of the initial weights and data order.")
     ] = 0,
-    max_epochs: Annotated[int | None, typer.Option(help="Cap on epochs.")] = None,
-    max_minutes: Annotated[float | None, typer.Option(help="Cap on training minutes.")] = None,
+    max_epochs: Annotated[
+        int | None, typer.Option(help="Cap on epochs (default: none, early stopping alone).")
+    ] = None,
+    max_minutes: Annotated[
+        float | None, typer.Option(help="Cap on training minutes (default: none).")
+    ] = None,
     device: Annotated[str, typer.Option(help="auto, cpu or cuda.")] = "cpu",
     resume: Annotated[
         bool, typer.Option(help="Continue the run in --out from its last epoch.")
@@ -158,7 +162,7 @@ def train(
         return
     result = train_run(data, out, config, resume=resume, on_epoch=on_epoch)
     err_console.print(
-        f"done: {result.stopped} after {result.epochs} epochs, best validation error "
+        f"done: {result.ending}, best validation error "
         f"{result.best_val_error:.6f} at epoch {result.best_epoch} ({result.seconds:.0f} s)"
     )
 
@@ -208,7 +212,7 @@ def _train_seeds(model: str, data: Path, out: Path, config, seeds: list[int], re
     results = train_seeds(data, out, config, seeds, resume=resume, on_epoch=on_epoch)
     for seed, result in zip(seeds, results, strict=True):
         err_console.print(
-            f"done s{seed}: {result.stopped} after {result.epochs} epochs, best validation error "
+            f"done s{seed}: {result.ending}, best validation error "
             f"{result.best_val_error:.6f} at epoch {result.best_epoch} -> {result.run_dir}"
         )
 
@@ -441,13 +445,22 @@ def analyze(
 def reproduce(
     scale: Annotated[
         str,
-        typer.Option(help="smoke (about a minute), quick (minutes) or paper (the full protocol)."),
+        typer.Option(
+            help="smoke: 20,000-step databases, 2 epochs a model, 1 seed (about a minute; it "
+            "tests the pipeline, not the paper). quick: 200,000 steps, epochs capped at 10 (S, "
+            "SM), 30 (Rec-S), 80 (Rec-SM), 1 seed (a few minutes). paper: the paper's protocol, "
+            "1,000,000 steps, early stopping, 5 seeds (about 50 min on 2 CPU cores)."
+        ),
     ] = "quick",
     out: Annotated[Path, typer.Option(help="Output folder (cached stages are reused).")] = Path(
         "runs/reproduce"
     ),
     seeds: Annotated[
-        int | None, typer.Option(help="Seeds per model and world (default: the scale's).")
+        int | None,
+        typer.Option(
+            help="How many seeds per model and world, 0..N-1 (a count, unlike train's list; "
+            "default: the scale's)."
+        ),
     ] = None,
     device: Annotated[str, typer.Option(help="auto, cpu or cuda.")] = "cpu",
     workers: Annotated[

@@ -92,6 +92,8 @@ class Run:
 def load_run(run_dir: str | Path, device: str | torch.device = "cpu") -> Run:
     """Load a run folder's config and best weights; InputError naming the file if anything is off."""
     run_dir = Path(run_dir)
+    if run_dir.is_file():
+        raise InputError(f"{run_dir}: is a file, not a run folder (made by `sensorimotor train`)")
     if not run_dir.is_dir():
         raise InputError(f"{run_dir}: run folder not found")
     cfg_path, weights = run_dir / "config.json", run_dir / "model.pt"

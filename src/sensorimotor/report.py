@@ -197,6 +197,8 @@ def write_report(rep, argv: list[str], hardware: dict) -> tuple[Path, Path]:
     b.append(
         Block("code", " ".join(["sensorimotor", *argv[1:]]) if argv else "sensorimotor reproduce")
     )
+    if rep.scale.caveat:
+        b.append(p(f"**Note.** {rep.scale.caveat}"))
     b.append(
         table(
             ["", ""],

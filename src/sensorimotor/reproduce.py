@@ -28,6 +28,7 @@ from sensorimotor.data import file_hash, write_text_atomic
 from sensorimotor.errors import InputError
 from sensorimotor.models import MODEL_KINDS
 from sensorimotor.parallel import Job, default_workers, report, run_jobs
+from sensorimotor.runs import count
 
 WORLDS = ("square", "rooms1", "rooms2")
 TRANSFER_FROM = ("square", "rooms1")  # paper Figs. 8-9: Rec-SM clusters carried to other worlds
@@ -46,12 +47,31 @@ class Scale:
     """Cap on epochs per model kind (missing or None: early stopping alone)."""
     patience: int = 10
     """Early-stopping patience in epochs (the paper: 10 epochs of 800,000 steps)."""
+    caveat: str = ""
+    """What the report of this scale can and cannot say, at its top."""
 
 
 SCALES = {
-    "smoke": Scale("smoke", 20_000, 1, {k: 2 for k in MODEL_KINDS}),
+    "smoke": Scale(
+        "smoke",
+        20_000,
+        1,
+        {k: 2 for k in MODEL_KINDS},
+        caveat="A smoke test of the pipeline: every model is trained for 2 epochs on 20,000 "
+        "steps, so its numbers and verdicts say nothing about the paper. `--scale paper` runs "
+        "the paper's protocol.",
+    ),
     # 5 times smaller epochs: a 5 times longer patience sees as many samples as the paper's 10
-    "quick": Scale("quick", 200_000, 1, {"s": 10, "sm": 10, "rec-s": 30, "rec-sm": 80}, 50),
+    "quick": Scale(
+        "quick",
+        200_000,
+        1,
+        {"s": 10, "sm": 10, "rec-s": 30, "rec-sm": 80},
+        50,
+        caveat="A quick run: 200,000-step databases, capped epochs and one seed, so its numbers "
+        "are indicative only and its verdicts carry no spread over seeds. `--scale paper` runs "
+        "the paper's protocol.",
+    ),
     "paper": Scale("paper", 1_000_000, 5, {}),
 }
 
@@ -142,7 +162,7 @@ def _train_job(data: str, run_dir: str, config: dict, data_sha: str) -> dict:
     result = train(data, run, TrainConfig(**config), resume=True, on_epoch=on_epoch)
     report(
         name,
-        f"done: {result.stopped} after {result.epochs} epochs, best val {result.best_val_error:.5f}",
+        f"done: {result.ending}, best val {result.best_val_error:.5f}",
     )
     return {"epochs": result.epochs, "best_val_error": result.best_val_error}
 
@@ -185,7 +205,8 @@ def _train_stack(runs: list[tuple[str, int, str, str]], config: dict) -> dict:
         report(
             names[i],
             f"epoch {r.epoch:3d} val {r.val_error:.5f} (best {stopper.lowest:.5f}) "
-            f"{r.samples_per_s / 1e3:.0f} k samples/s a seed (stacked)",
+            f"{r.samples_per_s / 1e3:.0f} k samples/s"
+            + (f" per seed, {len(runs)} stacked" if len(runs) > 1 else ""),
         )
 
     results = train_runs(
@@ -198,8 +219,7 @@ def _train_stack(runs: list[tuple[str, int, str, str]], config: dict) -> dict:
     for name, result in zip(names, results, strict=True):
         report(
             name,
-            f"done: {result.stopped} after {result.epochs} epochs, best val "
-            f"{result.best_val_error:.5f}",
+            f"done: {result.ending}, best val {result.best_val_error:.5f}",
         )
     return {name: r.best_val_error for name, r in zip(names, results, strict=True)}
 
@@ -426,10 +446,11 @@ def reproduce(
         jobs.sort(key=lambda job: -sum(SEED_COST[model] for _, model, _ in trains[job.name]))
         n_jobs = len(jobs)
         rep.timings["train"] = {"jobs": n_train, "cached": len(rep.runs) - n_train}
+        stacked = "seeds" if trains_stacked("rec-sm", device) else "S and SM seeds"
         log(
-            f"  {n_train} trainings to run in {len(jobs)} jobs "
-            f"({'seeds' if trains_stacked('rec-sm', device) else 'S and SM seeds'} stacked), "
-            f"{len(rep.runs) - n_train} cached, {workers} worker(s)"
+            f"  {count(n_train, 'training')} to run in {count(len(jobs), 'job')}"
+            + (f" ({stacked} stacked)" if len(jobs) < n_train else "")
+            + f", {len(rep.runs) - n_train} cached, {count(workers, 'worker')}"
         )
         overlapped = {"evaluate": 0, "analyze": 0}
 

@@ -114,6 +114,16 @@ class TrainResult:
     seconds: float
     history: list[EpochRecord] = field(default_factory=list)
 
+    @property
+    def ending(self) -> str:
+        """How it ended, for a progress line: "early stopping after 12 epochs"."""
+        return f"{self.stopped} after {count(self.epochs, 'epoch')}"
+
+
+def count(n: int, noun: str) -> str:
+    """``n`` and the noun, plural unless one: "1 epoch", "3 epochs"."""
+    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
+
 
 def run_name(world: str, model: str, seed: int) -> str:
     """The name of a run folder (CleanRL style): ``{world}__{model}__s{seed}``."""
@@ -230,17 +240,24 @@ def check_run_dir(out: Path, meta: dict, resume: bool) -> None:
             raise InputError(f"{cfg_path}: corrupt run config ({err})") from None
         except OSError as err:
             raise InputError(f"{cfg_path}: cannot read the run config ({err.strerror})") from None
-        for key in ("model", "train", "data"):
+        was = old["data"]
+        if was.get("sha256") != meta["data"]["sha256"]:
+            raise InputError(
+                f"{out}: --resume with other data: {meta['data']['path']} is not the database "
+                f"the run was started with ({was.get('path')}, {was.get('steps')} steps; the "
+                "contents differ, sha256)"
+            )
+        for key in ("model", "train"):
             a, b = old.get(key, {}), meta[key]
-            if key == "data":
-                a, b = a.get("sha256"), b["sha256"]
             if key == "train":  # the caps may change between sessions; the algorithm may not
                 caps = ("max_epochs", "max_minutes")
                 a = {k: v for k, v in a.items() if k not in caps}
                 b = {k: v for k, v in b.items() if k not in caps}
-            if a != b:
+            changed = sorted(k for k in a.keys() | b.keys() if a.get(k) != b.get(k))
+            if changed:
                 raise InputError(
-                    f"{out}: --resume with a different {key} than the run was started with"
+                    f"{out}: --resume with another {key} setting than the run was started with "
+                    f"({', '.join(f'{k}: {a.get(k)!r} -> {b.get(k)!r}' for k in changed)})"
                 )
         if (out / "checkpoint.pt").exists():
             check_archive(out / "checkpoint.pt")  # before the run's config is rewritten

@@ -179,7 +179,10 @@ class LaserWorldEnv(gym.Env[np.ndarray, np.ndarray]):
 
     def step(self, action):
         assert self.pose is not None, "Call reset before using step method."
-        action = np.asarray(action, dtype=np.float64).reshape(2)
+        action = np.asarray(action, dtype=np.float64)
+        if action.size != 2:
+            raise ValueError(f"action must be (d, r), 2 numbers, got shape {action.shape}")
+        action = action.reshape(2)
         if not np.isfinite(action).all():
             raise ValueError(f"action must be finite, got {action!r}")
         d = min(max(float(action[0]), 0.0), MAX_STEP)  # translation (units)
