@@ -17,6 +17,8 @@ import pytest
 
 from conftest import assert_one_line_error
 
+pytestmark = pytest.mark.slow  # end-to-end runs of the whole pipeline: minutes
+
 STAGES = ("data", "train", "evaluate", "analyze", "report")
 
 
