@@ -209,8 +209,13 @@ def test_actions_outside_the_box_are_clipped_and_nan_refused():
     env.reset(options={"pose": (25.0, 25.0, 0.0)})
     _, _, _, _, info = env.step(np.array([-3.0, 0.0]))  # d < 0: no motion
     assert info["pose"][0] == 25.0
-    _, _, _, _, info = env.step(np.array([7.0, 0.0]))  # d > 1: one unit
+    _, reward, _, _, info = env.step(np.array([7.0, 0.0]))  # d > 1: one unit
     assert info["pose"][0] == pytest.approx(26.0)
+    assert reward == 0.0  # no task: the paper's agent learns from prediction alone
+    env.reset(options={"pose": (49.5, 25.0, 0.0)})
+    _, reward, _, _, info = env.step(np.array([1.0, 0.0]))  # into the wall
+    assert info["collision"]
+    assert reward == 0.0
     with pytest.raises(ValueError, match="finite"):
         env.step(np.array([np.nan, 0.0]))
     for bad in (0.5, [0.5, 0.1, 0.0]):

@@ -140,3 +140,32 @@ def test_paper_ordering_needs_rec_sm_below_sm_below_both_others():
     assert paper_ordering_holds({"rec-sm": 1, "sm": 2, "rec-s": 1.5, "s": 3}) is False  # SM > Rec-S
     assert paper_ordering_holds({"rec-sm": 2.5, "sm": 2, "rec-s": 3, "s": 4}) is False
     assert paper_ordering_holds({"rec-sm": 1, "sm": 2, "s": 4}) is None
+
+
+def fake_results(trained_on: str, errors: dict[str, list[float]]) -> list[dict]:
+    """evaluate_run results: model -> one Square error per seed."""
+    return [
+        {"trained_on": trained_on, "model": m, "seed": i, "errors": {"square": e}}
+        for m, values in errors.items()
+        for i, e in enumerate(values)
+    ]
+
+
+def test_table_keeps_training_worlds_apart_and_orders_by_the_means():
+    from sensorimotor.tables import fmt_cell, table_from_results
+
+    # spread chosen so that the sds are in the opposite order of the means
+    square = {"rec-sm": [1.0, 1.2], "sm": [2.0, 2.0], "rec-s": [3.0, 3.0], "s": [4.0, 4.0]}
+    rooms1 = {m: [10 * v for v in values] for m, values in square.items()}
+    t = table_from_results(
+        fake_results("square", square) + fake_results("rooms1", rooms1), {}, ["square"]
+    )
+    cells = {
+        tw: {r["model"]: r["cells"]["square"] for r in rows} for tw, rows in t["tables"].items()
+    }
+    assert cells["square"]["rec-sm"]["mean"] == pytest.approx(1.1)
+    assert cells["rooms1"]["rec-sm"]["mean"] == pytest.approx(11.0)  # not pooled with Square's
+    assert cells["square"]["rec-sm"]["values"] == [1.0, 1.2]
+    assert t["paper_ordering_holds"]["square"]["square"] is True  # by means; the sds: 0.14 > 0
+    assert fmt_cell(cells["square"]["rec-sm"]) == "1.10000 ± 0.14142"
+    assert fmt_cell(cells["square"]["sm"], digits=2) == "2.00 ± 0.00"

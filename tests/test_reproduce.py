@@ -17,8 +17,6 @@ import pytest
 
 from conftest import assert_one_line_error
 
-pytestmark = pytest.mark.slow  # end-to-end runs of the whole pipeline: minutes
-
 STAGES = ("data", "train", "evaluate", "analyze", "report")
 
 
@@ -53,6 +51,7 @@ def smoke(tmp_path_factory) -> Path:
     return out
 
 
+@pytest.mark.slow  # the whole pipeline, end to end
 def test_smoke_report_has_every_stage_and_a_full_table(smoke):
     md = (smoke / "report.md").read_text()
     html = (smoke / "report.html").read_text()
@@ -78,6 +77,7 @@ def test_smoke_report_has_every_stage_and_a_full_table(smoke):
     assert 'src="figures' not in html  # self-contained
 
 
+@pytest.mark.slow  # the whole pipeline, end to end
 def test_rerun_uses_the_cache_and_a_deleted_stage_is_redone_alone(smoke):
     before = _table_numbers(smoke)
     stamp = {p: p.stat().st_mtime_ns for p in (smoke / "runs").rglob("model.pt")}
@@ -110,6 +110,7 @@ def test_rerun_uses_the_cache_and_a_deleted_stage_is_redone_alone(smoke):
     assert _table_numbers(smoke) == before
 
 
+@pytest.mark.slow  # the whole pipeline, end to end
 def test_killed_during_training_resumes_to_the_same_table(smoke, tmp_path):
     out = tmp_path / "killed"
     proc = subprocess.Popen(
@@ -131,6 +132,7 @@ def test_killed_during_training_resumes_to_the_same_table(smoke, tmp_path):
     assert _table_numbers(out) == _table_numbers(smoke)
 
 
+@pytest.mark.slow  # the whole pipeline, end to end
 def test_ctrl_c_stops_every_worker_at_once_and_says_how_to_go_on(tmp_path):
     out = tmp_path / "interrupted"
     proc = subprocess.Popen(
@@ -187,6 +189,7 @@ def test_output_folder_that_is_a_file_is_refused(tmp_path, cli):
     assert_one_line_error(proc, str(target), "is a file")
 
 
+@pytest.mark.slow  # the whole pipeline, end to end
 def test_a_failing_worker_names_its_run_and_finished_runs_are_kept(smoke, tmp_path):
     out = tmp_path / "copy"
     shutil.copytree(smoke, out)
@@ -209,6 +212,7 @@ def test_a_failing_worker_names_its_run_and_finished_runs_are_kept(smoke, tmp_pa
     assert _table_numbers(out) == _table_numbers(smoke)
 
 
+@pytest.mark.slow  # the whole pipeline, end to end
 def test_a_bad_database_in_a_stack_across_worlds_fails_only_its_runs(tmp_path):
     from sensorimotor.data import file_hash, generate, save_database
     from sensorimotor.errors import InputError
@@ -229,3 +233,31 @@ def test_a_bad_database_in_a_stack_across_worlds_fails_only_its_runs(tmp_path):
         _train_stack_job(runs, config)
     assert (tmp_path / "square__s__s0" / "model.pt").exists()  # trained, kept for the retry
     assert not (tmp_path / "rooms2__s__s0").exists()
+
+
+# --- cache keys: a stage is redone when anything it is made from changes -------------------
+
+
+def test_a_database_is_keyed_by_its_size_and_a_run_by_its_scales_patience():
+    from sensorimotor.reproduce import SCALES, _data_key, _train_config
+
+    keys = {_data_key(w, sc) for w in ("square", "rooms1") for sc in SCALES.values()}
+    assert len(keys) == 2 * len(SCALES)
+    assert _train_config(SCALES["quick"], "s", "cpu")["patience"] == SCALES["quick"].patience == 50
+    assert _train_config(SCALES["quick"], "rec-sm", "cpu")["max_epochs"] == 80
+
+
+def test_a_kept_analysis_is_redone_when_the_metrics_change(tmp_path, monkeypatch):
+    import sensorimotor.analysis as analysis
+    from sensorimotor.reproduce import _analysis_job_of
+
+    dest = tmp_path / "raw__square"
+    target = ("raw__square", "raw", "db.npz", None, str(dest))
+    job = _analysis_job_of(target, {"db.npz": "abc"})
+    dest.mkdir()
+    (dest / "metrics.json").write_text("{}")
+    (dest / "stage.json").write_text(json.dumps({"key": job.args[-1]}))
+    assert _analysis_job_of(target, {"db.npz": "abc"}) is None  # kept
+    assert _analysis_job_of(target, {"db.npz": "abd"}) is not None  # other data
+    monkeypatch.setattr(analysis, "METRICS_VERSION", analysis.METRICS_VERSION + 1)
+    assert _analysis_job_of(target, {"db.npz": "abc"}) is not None  # other metrics

@@ -305,6 +305,8 @@ def test_resume_with_other_data_or_settings_says_what_changed(
     assert str(square_db_path) in str(info.value)
     with pytest.raises(InputError, match=r"another train setting .*lr: 0\.001 -> 0\.01"):
         train(square_db_path, run, TrainConfig(model="s", max_epochs=2, lr=0.01), resume=True)
+    with pytest.raises(InputError, match="seed: 0 -> 1"):
+        train(square_db_path, run, TrainConfig(model="s", max_epochs=2, seed=1), resume=True)
 
 
 def test_a_run_file_in_the_way_is_found_before_anything_is_written(square_db_path, tmp_path, cli):

@@ -104,6 +104,11 @@ def _data_job(world: str, steps: int, seed: int, path: str, key: str) -> str:
     return path
 
 
+def _data_key(world: str, sc: Scale) -> str:
+    """The cache key of a world's database: what ``generate`` makes it from."""
+    return stage_key({"world": world, "steps": sc.steps, "seed": 0, "version": __version__})
+
+
 def run_matches(run: Path, data_sha: str, config: dict) -> bool:
     """Whether a run folder was made from this data and this training configuration."""
     from sensorimotor.train import TrainConfig
@@ -400,7 +405,7 @@ def reproduce(
         jobs = []
         for world in WORLDS:
             path = out / "data" / f"{world}.npz"
-            key = stage_key({"world": world, "steps": sc.steps, "seed": 0, "version": __version__})
+            key = _data_key(world, sc)
             rep.data[world] = path
             if path.exists() and _read_key(path.with_suffix(".json")) == key:
                 continue
