@@ -126,6 +126,12 @@ def test_paper_agreement_counts_cells_within_a_quarter():
     assert "S-encoder on rooms1 (+30%)" in text
 
 
+def test_paper_agreement_counts_a_cell_far_below_the_paper_as_outside():
+    rows = [{"model": "s", "name": "S-encoder", "cells": {"square": {"mean": 0.03735 * 0.7}}}]
+    text = paper_agreement(rows, ["square"])
+    assert text == "Cells within 25% of the paper: 0 of 1; outside: S-encoder on square (-30%)."
+
+
 def test_markdown_and_html_carry_the_same_blocks(tmp_path):
     png = tmp_path / "a.png"
     from matplotlib.figure import Figure

@@ -261,3 +261,62 @@ def test_a_kept_analysis_is_redone_when_the_metrics_change(tmp_path, monkeypatch
     assert _analysis_job_of(target, {"db.npz": "abd"}) is not None  # other data
     monkeypatch.setattr(analysis, "METRICS_VERSION", analysis.METRICS_VERSION + 1)
     assert _analysis_job_of(target, {"db.npz": "abc"}) is not None  # other metrics
+
+
+def test_a_transfer_fits_on_the_training_world_and_applies_to_another(tmp_path):
+    import sensorimotor.reproduce as rp
+
+    rep = rp.Reproduction(tmp_path, rp.SCALES["smoke"], 1, "cpu", 1)
+    rep.data = {w: tmp_path / f"{w}.npz" for w in rp.WORLDS}
+    for world in rp.TRANSFER_FROM:
+        own, *transfers = rp._analysis_targets(rep, world, "rec-sm", 0)
+        assert own[3] is None
+        assert {t[2] for t in transfers} == {str(rep.data[w]) for w in rp.WORLDS if w != world}
+        assert all(t[3] == str(rep.data[world]) for t in transfers)
+    assert len(rp._analysis_targets(rep, "square", "rec-s", 0)) == 1
+
+
+def test_a_crash_in_a_job_is_not_reported_as_bad_input():
+    from sensorimotor.errors import InputError
+    from sensorimotor.parallel import JobFailure
+    from sensorimotor.reproduce import _raise_failures
+
+    with pytest.raises(RuntimeError, match="run square__s__s0 failed") as info:
+        _raise_failures([JobFailure("square__s__s0", ZeroDivisionError("x"))], print)
+    assert not isinstance(info.value, InputError)
+    assert isinstance(info.value.__cause__, ZeroDivisionError)
+
+
+def _section(md: str, world: str) -> str:
+    return md.split(f"### Trained on {world}\n")[1].split("\n#")[0]
+
+
+@pytest.mark.slow  # the whole pipeline, end to end
+def test_the_reports_numbers_are_the_tables_and_the_transfers(smoke):
+    from sensorimotor.claims import cluster_f1
+
+    md = (smoke / "report.md").read_text()
+    t = json.loads((smoke / "table1.json").read_text())
+    for name in ("mean", "copy_last"):
+        row = f"| baseline: {name.replace('_', '-')} | " + " | ".join(
+            f"{t['baselines'][w][name]:.5f}" for w in t["worlds"]
+        )
+        assert md.count(row + " |") == 3, row  # once in each training world's Table I
+    assert "[0.03735]" in _section(md, "square")  # the paper's numbers: Square-trained only
+    for world in ("rooms1", "rooms2"):
+        assert "[" not in _section(md, world), world
+    told_apart = 0
+    for folder in sorted((smoke / "transfer").iterdir()):
+        m = json.loads((folder / "metrics.json").read_text())
+        fit, applied = m["fit_analysis"], m["analysis"]
+        head = f"| {fit['world']} → {applied['world']} |"
+        row = next(line for line in md.splitlines() if line.startswith(head))
+        for e in ("corner", "wall_end", "nothing"):
+            c = fit["events"].get(e, {}).get("cluster")
+            if c is None:
+                continue
+            there = cluster_f1(applied, c, e)
+            text = "none there" if there != there else f"{there:.2f}"
+            assert f"#{c}: {fit['events'][e]['f1']:.2f} → {text}" in row, (row, e)
+            told_apart += abs(there - fit["events"][e]["f1"]) >= 0.005
+    assert told_apart > 0

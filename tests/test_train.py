@@ -309,6 +309,34 @@ def test_resume_with_other_data_or_settings_says_what_changed(
         train(square_db_path, run, TrainConfig(model="s", max_epochs=2, seed=1), resume=True)
 
 
+def test_a_time_cap_counts_earlier_sessions_and_lifting_it_goes_on(square_db_path, tmp_path):
+    run = tmp_path / "run"
+    train(square_db_path, run, TrainConfig(model="s", max_epochs=1))
+    spent = torch.load(run / "checkpoint.pt", weights_only=True)["seconds"]
+    cap = TrainConfig(model="s", max_epochs=5, max_minutes=spent / 60 / 2)  # already used up
+    res = train(square_db_path, run, cap, resume=True)
+    assert (res.stopped, res.epochs) == ("time cap", 1)
+    res = train(square_db_path, run, TrainConfig(model="s", max_epochs=3), resume=True)
+    assert (res.stopped, res.epochs) == ("max epochs", 3)
+
+
+def test_cli_max_minutes_caps_training(square_db_path, tmp_path, cli):
+    out = tmp_path / "run"
+    args = ("--max-minutes", "0.00001", "--max-epochs", "3")
+    proc = cli("train", "s", "--data", square_db_path, "--out", out, *args)
+    assert proc.returncode == 0, proc.stderr
+    res = json.loads((out / "result.json").read_text())
+    assert (res["stopped"], res["epochs"]) == ("time cap", 1)
+    assert json.loads((out / "config.json").read_text())["train"]["max_minutes"] == 0.00001
+
+
+def test_the_first_n_mod_streams_streams_are_the_longer_ones():
+    _, mask = stream_layout(1000, 64)  # 1000 = 64 x 15 + 40
+    lengths = mask.sum(1)
+    assert lengths[:40].eq(16).all()
+    assert lengths[40:].eq(15).all()
+
+
 def test_a_run_file_in_the_way_is_found_before_anything_is_written(square_db_path, tmp_path, cli):
     run = tmp_path / "run"
     (run / "history.csv").mkdir(parents=True)
