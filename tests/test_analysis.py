@@ -335,6 +335,20 @@ def test_an_analysis_into_a_used_folder_leaves_none_of_the_earlier_files(
     assert sorted(p.name for p in res.files) == names
 
 
+def test_cli_analyze_passes_its_seed(square_db_path, tmp_path, cli):
+    args = ("--data", square_db_path, "--out", tmp_path / "cli", "--seed", "3", "--no-svg")
+    proc = cli("analyze", "raw", *args)
+    assert proc.returncode == 0, proc.stderr
+    an.analyze_files("raw", square_db_path, tmp_path / "lib3", seed=3)
+    an.analyze_files("raw", square_db_path, tmp_path / "lib0", seed=0)
+    labels = {
+        d: np.load(tmp_path / d / "pca.npz", allow_pickle=False)["labels"]
+        for d in ("cli", "lib3", "lib0")
+    }
+    assert not np.array_equal(labels["lib3"], labels["lib0"])  # the seed matters here
+    np.testing.assert_array_equal(labels["cli"], labels["lib3"])
+
+
 def test_cli_analyze_bad_input_is_one_line(cli, tmp_path):
     missing = tmp_path / "nope.npz"
     proc = cli("analyze", "raw", "--data", missing, "--out", tmp_path / "o")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import statistics
 
@@ -169,3 +170,15 @@ def test_table_keeps_training_worlds_apart_and_orders_by_the_means():
     assert t["paper_ordering_holds"]["square"]["square"] is True  # by means; the sds: 0.14 > 0
     assert fmt_cell(cells["square"]["rec-sm"]) == "1.10000 ± 0.14142"
     assert fmt_cell(cells["square"]["sm"], digits=2) == "2.00 ± 0.00"
+
+
+def test_evaluate_prints_each_baseline_under_its_own_column(two_seeds, square_db_path, cli):
+    proc = cli("evaluate", two_seeds / "sm0", "--data", square_db_path)
+    assert proc.returncode == 0, proc.stderr
+    b = baselines(load_database(square_db_path))
+    row = next(
+        line
+        for line in proc.stdout.splitlines()
+        if "square" in line and re.search(r"\d\.\d{5}", line)
+    )
+    assert re.findall(r"\d+\.\d{5}", row)[1:] == [f"{b['mean']:.5f}", f"{b['copy_last']:.5f}"]
