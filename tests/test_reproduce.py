@@ -35,6 +35,19 @@ def _reproduce(out: Path, *extra: str, timeout: float = 900) -> subprocess.Compl
     )
 
 
+def _start_until_a_checkpoint(out: Path, stderr) -> subprocess.Popen:
+    """Start the smoke reproduction in its own process group; return once a training has
+    written its first checkpoint, with the run still going."""
+    proc = subprocess.Popen(
+        _command(out), stdout=subprocess.DEVNULL, stderr=stderr, text=True, start_new_session=True
+    )
+    deadline = time.time() + 300
+    while time.time() < deadline and not list((out / "runs").glob("*/checkpoint.pt")):
+        time.sleep(0.05)
+    assert proc.poll() is None, "finished before a checkpoint was seen"
+    return proc
+
+
 def _table_numbers(out: Path) -> dict:
     t = json.loads((out / "table1.json").read_text())
     return {
@@ -113,16 +126,7 @@ def test_rerun_uses_the_cache_and_a_deleted_stage_is_redone_alone(smoke):
 @pytest.mark.slow  # the whole pipeline, end to end
 def test_killed_during_training_resumes_to_the_same_table(smoke, tmp_path):
     out = tmp_path / "killed"
-    proc = subprocess.Popen(
-        _command(out),
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-        start_new_session=True,
-    )
-    deadline = time.time() + 300
-    while time.time() < deadline and not list((out / "runs").glob("*/checkpoint.pt")):
-        time.sleep(0.05)
-    assert proc.poll() is None, "finished before it could be killed"
+    proc = _start_until_a_checkpoint(out, stderr=subprocess.DEVNULL)
     proc.send_signal(signal.SIGKILL)  # the parent only: workers must die with it
     proc.wait()
     time.sleep(1.0)
@@ -135,17 +139,7 @@ def test_killed_during_training_resumes_to_the_same_table(smoke, tmp_path):
 @pytest.mark.slow  # the whole pipeline, end to end
 def test_ctrl_c_stops_every_worker_at_once_and_says_how_to_go_on(tmp_path):
     out = tmp_path / "interrupted"
-    proc = subprocess.Popen(
-        _command(out),
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-        start_new_session=True,
-    )
-    deadline = time.time() + 300
-    while time.time() < deadline and not list((out / "runs").glob("*/checkpoint.pt")):
-        time.sleep(0.05)
-    assert proc.poll() is None, "finished before it could be interrupted"
+    proc = _start_until_a_checkpoint(out, stderr=subprocess.PIPE)
     os.killpg(proc.pid, signal.SIGINT)  # as a terminal's Ctrl-C: the parent and its workers
     t0 = time.time()
     _, err = proc.communicate(timeout=60)

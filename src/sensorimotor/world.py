@@ -7,6 +7,7 @@ events, plots) reads that array and nothing else.
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 import tomllib
@@ -161,10 +162,16 @@ def load_world(spec: str | Path) -> World:
     return world
 
 
+@functools.cache
+def _builtin(name: str) -> World:
+    """A built-in world read once, for comparisons only (callers of load_world get their own)."""
+    return load_world(name)
+
+
 def check_builtin_name(world: World, source: str) -> None:
     """Refuse a world that takes a built-in world's name but not its walls: runs are named, and
     set beside the paper's numbers, by the world's name."""
-    if world.name in BUILTIN_WORLDS and world != load_world(world.name):
+    if world.name in BUILTIN_WORLDS and world != _builtin(world.name):
         raise InputError(
             f"{source}: {world.name!r} is the name of a built-in world with other walls; give "
             "this world a name of its own"
