@@ -296,6 +296,20 @@ def test_render_is_an_rgb_image_of_walls_rays_and_red_dots():
     env.close()
 
 
+def test_render_draws_each_red_dot_on_the_wall_its_ray_hits():
+    env = gym.make(LASER_WORLD_ID, world="square", render_mode="rgb_array")
+    env.reset(options={"pose": (3.0, 20.0, math.pi - 0.4)})  # rays hit the wall x = 0 apart
+    env.render()
+    (dots,) = [
+        c for ax in env.unwrapped._figure.axes for c in ax.collections if c.get_gid() == "percept"
+    ]
+    points = dots.get_offsets()  # (5, 2)
+    segments = load_world("square").segments
+    on_wall = point_segment_distance(segments, points[:, 0], points[:, 1]).min(axis=1)
+    assert np.allclose(on_wall, 0.0, atol=1e-9)
+    env.close()
+
+
 def test_render_without_a_mode_warns_and_returns_none():
     env = gym.make(LASER_WORLD_ID, world="square")
     env.reset(seed=0)

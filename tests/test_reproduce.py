@@ -257,6 +257,24 @@ def test_a_kept_analysis_is_redone_when_the_metrics_change(tmp_path, monkeypatch
     assert _analysis_job_of(target, {"db.npz": "abc"}) is not None  # other metrics
 
 
+def test_a_kept_evaluation_is_redone_when_its_model_or_data_change(tmp_path):
+    import sensorimotor.reproduce as rp
+
+    rep = rp.Reproduction(tmp_path, rp.SCALES["smoke"], 1, "cpu", 1)
+    rep.data = {w: tmp_path / f"{w}.npz" for w in rp.WORLDS}
+    run = rep.run_dir("square", "s", 0)
+    run.mkdir(parents=True)
+    (run / "model.pt").write_bytes(b"weights")
+    job = rp._eval_job_of(rep, "square", "s", 0, "abc")
+    path = rp._eval_path(rep, run.name)
+    path.parent.mkdir()
+    path.write_text(json.dumps({"key": job.args[-1], "result": {}}))
+    assert rp._eval_job_of(rep, "square", "s", 0, "abc") is None  # kept
+    assert rp._eval_job_of(rep, "square", "s", 0, "abd") is not None  # other data
+    (run / "model.pt").write_bytes(b"retrained")
+    assert rp._eval_job_of(rep, "square", "s", 0, "abc") is not None  # other model
+
+
 def test_a_transfer_fits_on_the_training_world_and_applies_to_another(tmp_path):
     import sensorimotor.reproduce as rp
 
