@@ -13,12 +13,12 @@ import torch
 
 import sensorimotor.evaluate as ev
 from conftest import assert_one_line_error
-from sensorimotor.data import generate, load_database
+from sensorimotor.data import generate, load_database, save_database
 from sensorimotor.evaluate import baselines, load_run, prediction_error, run_model, split_tensors
 from sensorimotor.models import build_model
 from sensorimotor.sim import SensorLayout
 from sensorimotor.train import TrainConfig, train
-from sensorimotor.world import load_world
+from sensorimotor.world import load_world, world_from_dict
 
 
 def test_error_sums_over_sensors_and_averages_over_steps():
@@ -124,6 +124,20 @@ def test_table_gives_mean_and_sd_over_seeds(two_seeds, square_db_path, tmp_path,
     assert rows["s"]["cells"]["square"]["sd"] == 0.0
     assert t["paper_ordering_holds"]["square"]["square"] is None  # rec models missing
     assert "0.005576" in proc.stdout  # the paper's SM value beside ours
+
+
+def test_table_puts_the_papers_numbers_only_beside_the_papers_worlds(
+    two_seeds, square_db_path, tmp_path, cli
+):
+    corridor = world_from_dict({"name": "corridor", "size": 50, "walls": [[20, 0, 20, 30]]})
+    corridor_db = tmp_path / "corridor.npz"
+    save_database(generate(corridor, 5_000, seed=0), corridor_db)
+    proc = cli("table", two_seeds / "sm0", "--data", square_db_path, "--data", corridor_db)
+    assert proc.returncode == 0, proc.stderr
+    header = next(line for line in proc.stdout.splitlines() if "corridor" in line)
+    columns = [c.strip() for c in header.split("┃")[2:-1]]
+    assert columns == ["square", "paper", "corridor"]  # no empty paper column for corridor
+    assert "0.005576" in proc.stdout
 
 
 def test_table_refuses_a_seed_given_twice(two_seeds, square_db_path, tmp_path, cli):

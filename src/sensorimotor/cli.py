@@ -276,31 +276,32 @@ def table(
     result = build_table(runs, dbs)
     worlds = result["worlds"]
     for trained_on, rows in result["tables"].items():
-        paper = trained_on == "square"
+        # the paper's number beside a cell only where the paper has one: Square-trained models
+        # tested on one of its worlds
+        paper = {w: trained_on == "square" and w in PAPER_TABLE_I["s"] for w in worlds}
         t = Table(title=f"Table I: test error, trained on {trained_on} (mean ± sd over seeds)")
         t.add_column("model")
         for w in worlds:
             t.add_column(w, justify="right")
-            if paper:
+            if paper[w]:
                 t.add_column("paper", justify="right", style="dim")
         for row in rows:
             cells = [row["name"]]
             for w in worlds:
                 cells.append(fmt_cell(row["cells"].get(w)))
-                if paper:
-                    value = PAPER_TABLE_I.get(row["model"], {}).get(w)
-                    cells.append("" if value is None else f"{value:g}")
+                if paper[w]:
+                    cells.append(f"{PAPER_TABLE_I[row['model']][w]:g}")
             t.add_row(*cells)
         for name in ("mean", "copy_last"):
             cells = [f"baseline: {name.replace('_', '-')}"]
             for w in worlds:
-                cells += [f"{result['baselines'][w][name]:.5f}"] + ([""] if paper else [])
+                cells += [f"{result['baselines'][w][name]:.5f}"] + ([""] if paper[w] else [])
             t.add_row(*cells, style="dim")
         holds = result["paper_ordering_holds"][trained_on]
         cells = ["paper ordering"]
         for w in worlds:
             cells += [{True: "holds", False: "fails", None: "n/a"}[holds[w]]] + (
-                [""] if paper else []
+                [""] if paper[w] else []
             )
         t.add_row(*cells)
         Console(width=max(100, Console().width)).print(t)
