@@ -10,12 +10,13 @@ import json
 import pytest
 import torch
 
+import sensorimotor.stacked as stacked_mod
 import sensorimotor.train as train_mod
 from conftest import assert_one_line_error
 from sensorimotor.data import load_database
 from sensorimotor.errors import InputError
 from sensorimotor.evaluate import load_run, model_error, split_tensors
-from sensorimotor.models import build_model
+from sensorimotor.models import MODEL_KINDS, build_model
 from sensorimotor.stacked import (
     StackedEncoders,
     run_name,
@@ -110,6 +111,47 @@ def test_stacked_epochs_agree_with_the_plain_loop_and_do_not_depend_on_the_stack
         assert all(torch.equal(a[k], b[0]) for a, b in zip(net.params, net1.params, strict=True))
     net2, _ = stacked(seeds[::-1])
     assert all(torch.equal(a, b.flip(0)) for a, b in zip(net.params, net2.params, strict=True))
+
+
+@pytest.fixture
+def relu_edited_to_tanh(monkeypatch):
+    """models.py as a user might edit it: every ReLU a Tanh (which the stack does not know)."""
+    stacked_mod.computes_models_py.cache_clear()
+    monkeypatch.setattr(torch.nn, "ReLU", torch.nn.Tanh)
+    yield
+    stacked_mod.computes_models_py.cache_clear()
+
+
+def test_the_stack_computes_what_models_py_computes():
+    assert all(stacked_mod.computes_models_py(kind) for kind in MODEL_KINDS)
+    assert stacked_mod.trains_stacked("sm", "cpu")
+
+
+def test_a_model_edited_in_models_py_trains_as_edited_with_autograd(
+    relu_edited_to_tanh, square_db_path, tmp_path
+):
+    assert not any(stacked_mod.computes_models_py(kind) for kind in MODEL_KINDS)
+    assert not stacked_mod.trains_stacked("sm", "cpu")
+    (result,) = train_seeds(
+        square_db_path, tmp_path, TrainConfig(model="sm", max_epochs=2), seeds=[0]
+    )
+    run = load_run(result.run_dir)
+    assert any(isinstance(mod, torch.nn.Tanh) for mod in run.model.modules())
+    vs, vm = split_tensors(load_database(square_db_path), "val")
+    # the model saved is the model trained: its validation error is the one recorded
+    assert model_error(run.model, vs, vm) == pytest.approx(result.best_val_error, rel=1e-5)
+    with pytest.raises(ValueError, match="not what the stack computes"):
+        train_runs(square_db_path, [(0, tmp_path / "stacked")], TrainConfig(model="sm"))
+
+
+def test_the_autograd_fallback_trains_what_the_stack_trains(square_db_path, tmp_path, monkeypatch):
+    config = TrainConfig(model="sm", max_epochs=1)  # float32 drift grows over more epochs
+    stacked = train(square_db_path, tmp_path / "stacked", config)
+    monkeypatch.setattr(stacked_mod, "computes_models_py", lambda model: False)
+    plain = train(square_db_path, tmp_path / "plain", config)
+    assert plain.best_val_error == pytest.approx(stacked.best_val_error, rel=1e-4)
+    a, b = (load_run(r.run_dir).model.state_dict() for r in (plain, stacked))
+    assert _close(a, b, tol=1e-4)  # 250 steps on real data: 3e-5 seen
 
 
 def test_select_and_concat_keep_each_seed_state():

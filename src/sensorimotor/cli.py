@@ -189,7 +189,7 @@ def _parse_seeds(text: str) -> list[int]:
 def _train_seeds(model: str, data: Path, out: Path, config, seeds: list[int], resume: bool) -> None:
     """`train --seeds`: one run folder per seed under OUT, a line per seed and epoch."""
     from sensorimotor.models import MODEL_NAMES
-    from sensorimotor.stacked import train_seeds, trains_stacked
+    from sensorimotor.stacked import computes_models_py, train_seeds, trains_stacked
 
     started: list[bool] = []
 
@@ -197,6 +197,8 @@ def _train_seeds(model: str, data: Path, out: Path, config, seeds: list[int], re
         if not started:  # the header waits for the first epoch: input errors stay one line
             started.append(True)
             how = "stacked" if trains_stacked(model, config.device) else "one after another"
+            if not computes_models_py(model):
+                how += f", with autograd: models.py's {model} is not what stacked.py computes"
             err_console.print(
                 f"training {MODEL_NAMES[model]} on {data}, seeds {','.join(map(str, seeds))} "
                 f"({how}) -> {out}"

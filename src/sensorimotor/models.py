@@ -10,6 +10,11 @@ representation z_s (10-d). Shapes: B batch, T time, 5 sensors, 2 motors.
 
 ReLU after every hidden layer; z_s, z_m and the prediction are linear. The same ``forward``
 serves training, evaluation and analysis; analysis reads ``z_s`` and nothing else.
+
+On the CPU, training runs these layers through hand-written passes over stacked seeds
+(``stacked.py``, ``stacked_lstm.py``), checked against this file before training starts
+(``stacked.computes_models_py``); edit a model here and, if those passes do not compute it
+any more, it trains with autograd instead: as edited, only slower.
 """
 
 from __future__ import annotations

@@ -418,7 +418,14 @@ def reproduce(
 
     # train --------------------------------------------------------------------------------
     with _stage(rep, "train", log):
-        from sensorimotor.stacked import trains_stacked
+        from sensorimotor.stacked import computes_models_py, trains_stacked
+
+        for model in MODEL_KINDS:
+            if not computes_models_py(model):
+                log(
+                    f"  [yellow]models.py's {model} is not what stacked.py computes: it trains "
+                    "with autograd, one seed at a time (slower)"
+                )
 
         jobs, n_train = [], 0
         trains: dict[str, list[tuple[str, str, int]]] = {}  # job name -> the runs it trains

@@ -32,6 +32,7 @@ stay bit for bit the same in a stack of K as alone (tests check both).
 
 from __future__ import annotations
 
+import functools
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
@@ -90,8 +91,49 @@ def check_seeds(seeds: Sequence[int]) -> list[int]:
 
 def trains_stacked(model: str, device: str) -> bool:
     """Whether ``train_runs`` trains ``model`` on ``device`` ("auto", "cpu", "cuda"): every
-    model but the recurrent ones on CUDA (the stacked LSTM's kernels are CPU code)."""
-    return not ModelConfig(kind=model).recurrent or resolve_device(device) == "cpu"
+    model but the recurrent ones on CUDA (the stacked LSTM's kernels are CPU code), as long as
+    the stack computes what ``models.py`` does (``computes_models_py``)."""
+    on_cpu = resolve_device(device) == "cpu"
+    return (on_cpu or not ModelConfig(kind=model).recurrent) and computes_models_py(model)
+
+
+@functools.cache
+def computes_models_py(model: str) -> bool:
+    """Whether the stack's hand-written passes compute what ``models.py`` computes for
+    ``model``: one step's loss and every gradient on a small random batch, against autograd
+    through the ``nn.Module``, to float32 rounding. They are written for the paper's layers
+    (Linear and ReLU; an LSTM); a model edited in ``models.py`` that they do not know (another
+    activation, another layer) fails this, and ``train.train`` then trains it with autograd.
+    Checked once per process, on the CPU, in about 10 ms."""
+    from sensorimotor.stacked_lstm import forward_backward as recurrent_forward_backward
+
+    gen = torch.Generator().manual_seed(0)
+    module = build_model(model, seed=0)
+    c = module.config
+    t, b = (5, 8) if c.recurrent else (1, 32)  # time steps, streams or batch
+    xs, y = (
+        torch.rand(t, b, c.n_sensors, generator=gen),
+        torch.rand(t, b, c.n_sensors, generator=gen),
+    )
+    xm = torch.rand(t, b, c.n_motors, generator=gen) * 2 - 1
+    try:
+        net = StackedEncoders.from_models([module])
+        sq_sum = torch.zeros(1)
+        if c.recurrent:
+            recurrent_forward_backward(net, xs, xm, y, None, None, sq_sum)
+        else:
+            net.forward_backward(xs, xm, y, sq_sum.view(1, 1, 1))
+    except Exception:  # a layer the stack cannot even lay out
+        return False
+    # the same step through the module, batch first: (B, T, .)
+    pred, _, _ = module(xs.transpose(0, 1), xm.transpose(0, 1))
+    loss = (pred - y.transpose(0, 1)).square().sum(-1).mean()
+    loss.backward()
+    ours = [g.reshape(p.shape) for g, p in zip(net.grads, module.parameters(), strict=True)]
+    return torch.allclose(sq_sum, loss.detach() * t * b, rtol=1e-4) and all(
+        torch.allclose(g, p.grad, rtol=1e-3, atol=1e-6)
+        for g, p in zip(ours, module.parameters(), strict=True)
+    )
 
 
 def model_layout(config: ModelConfig) -> tuple[list[str], list[torch.Size], list[str]]:
@@ -485,6 +527,10 @@ def train_runs(
     device = resolve_device(config.device)
     config = replace(config, device=device)
     model_config = ModelConfig(kind=config.model)
+    if not computes_models_py(config.model):
+        raise ValueError(
+            f"models.py's {config.model} is not what the stack computes: train it with train.train"
+        )
     if not trains_stacked(config.model, device):
         raise ValueError(
             "the stacked LSTM is CPU only: train recurrent models on CUDA with train.train"

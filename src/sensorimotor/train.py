@@ -256,7 +256,9 @@ def train(
     On the CPU every model goes through ``stacked.train_runs`` (a stack of one, hand-written
     backward pass): S and SM give the numbers of ``train_epoch_feedforward`` with autograd,
     Rec-S and Rec-SM those of ``train_epoch_recurrent`` (``nn.LSTM``, ``stacked_lstm``), both
-    to float32 rounding. The loop below trains the recurrent models on CUDA.
+    to float32 rounding. The loop below runs those two with autograd: the recurrent models on
+    CUDA, and any model of ``models.py`` that the hand-written passes do not compute
+    (``stacked.computes_models_py``: an edited model trains as edited, only slower).
     """
     from sensorimotor.stacked import train_runs, trains_stacked
 
@@ -293,8 +295,12 @@ def train(
     epoch = start_epoch
     while (stopped := stop_reason(config, stopper, epoch, elapsed)) is None:
         t0 = time.perf_counter()
-        model.train()  # recurrent models on CUDA only: the others returned above
-        train_error = train_epoch_recurrent(model, opt, s, m, config.batch_size, config.horizon)
+        model.train()
+        if model_config.recurrent:
+            train_error = train_epoch_recurrent(model, opt, s, m, config.batch_size, config.horizon)
+        else:
+            order = epoch_generator(config.seed, epoch)
+            train_error = train_epoch_feedforward(model, opt, s, m, config.batch_size, order)
         seconds = time.perf_counter() - t0
         val_error = model_error(model, vs, vm)
         improved, best = stopper.update(epoch, val_error)
