@@ -12,9 +12,9 @@ from matplotlib.figure import Figure
 
 from conftest import assert_one_line_error
 from sensorimotor import events, plots, sim
-from sensorimotor.data import load_database
+from sensorimotor.data import generate, load_database
 from sensorimotor.errors import InputError
-from sensorimotor.world import BUILTIN_WORLDS, load_world
+from sensorimotor.world import BUILTIN_WORLDS, load_world, point_segment_distance
 
 RED = to_rgba("red")
 
@@ -151,6 +151,27 @@ def test_perception_figure_has_one_panel_per_situation(rooms1_db):
     for ax, caption in zip(fig.axes, plots.SITUATIONS.values(), strict=True):
         assert caption in ax.get_title()
         assert len(percept(ax).get_offsets()) == 5
+
+
+def test_perception_figure_draws_a_databases_own_sensor_layout():
+    layout = sim.SensorLayout(angles=(-1.2, -0.6, 0.0, 0.6, 1.2), max_range=6.0)
+    db = generate(load_world("rooms1"), 20_000, seed=1, layout=layout)
+    fig = plots.perception_figure(db)
+    assert len(fig.axes) >= 4
+    for ax in fig.axes:
+        dots = percept(ax)
+        hit = np.asarray(dots.get_facecolors())[:, 3] > 0  # filled: a wall was hit
+        points = dots.get_offsets()[hit]
+        gaps = point_segment_distance(db.world.segments, points[:, 0], points[:, 1]).min(axis=1)
+        assert np.all(gaps < 1e-4), ax.get_title()  # every hit drawn on a wall, at its own angle
+
+
+def test_generate_refuses_a_layout_the_encoders_or_the_behaviour_cannot_use():
+    world = load_world("square")
+    with pytest.raises(ValueError, match="5 readings"):
+        generate(world, 100, layout=sim.SensorLayout(angles=(-0.6, -0.3, 0.0, 0.3, 0.6, 0.9)))
+    with pytest.raises(ValueError, match="straight ahead"):
+        generate(world, 100, layout=sim.SensorLayout(angles=(-1.2, -0.6, 0.1, 0.6, 1.2)))
 
 
 # ----------------------------------------------------------------------------------- saving

@@ -94,7 +94,15 @@ def generate(
     noise_std: float = 0.0,
     progress: Callable[[int], None] | None = None,
 ) -> Database:
-    """Roll the paper's behaviour out for ``steps`` steps and package it as a Database."""
+    """Roll the paper's behaviour out for ``steps`` steps and package it as a Database.
+
+    ``layout`` may point the lasers elsewhere and see farther or nearer, but a database holds
+    the 5 readings the encoders read, and one ray must look straight ahead (``sim.rollout``)."""
+    if len(layout.angles) != ARRAYS["sensors"]:
+        raise ValueError(
+            f"a database holds {ARRAYS['sensors']} readings a step (what the encoders read): "
+            f"the layout has {len(layout.angles)} angles"
+        )
     run = rollout(world, steps, seed, layout, noise_std, progress=progress)
     meta = {
         "format": "sensorimotor-database/1",

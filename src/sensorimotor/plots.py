@@ -26,7 +26,14 @@ from matplotlib.figure import Figure
 
 from sensorimotor import events
 from sensorimotor.data import Database, atomic_path, check_writable
-from sensorimotor.sim import MAX_RANGE, SENSOR_ANGLES, TURN_THRESHOLD, hit_walls, read_sensors
+from sensorimotor.sim import (
+    MAX_RANGE,
+    SENSOR_ANGLES,
+    TURN_THRESHOLD,
+    SensorLayout,
+    hit_walls,
+    read_sensors,
+)
 from sensorimotor.world import World, point_segment_distance
 
 WALL_COLOR = "black"
@@ -180,7 +187,7 @@ def _bearing_score(
     world: World,
     poses: np.ndarray,
     points: np.ndarray,
-    max_range: float,
+    layout: SensorLayout,
     allowed: np.ndarray | None = None,
 ) -> np.ndarray:
     """(N,) for each pose, how central and mid-range its best visible point is (lower: better).
@@ -188,7 +195,8 @@ def _bearing_score(
     points: (P, 2); ``allowed`` (N, P) bool further restricts which points count; a pose with
     none scores inf.
     """
-    visible = events.points_in_view(world, poses, points, max_range=max_range)  # (N, P)
+    max_range = layout.max_range
+    visible = events.points_in_view(world, poses, points, np.asarray(layout.angles), max_range)
     if allowed is not None:
         visible &= allowed
     dx = points[None, :, 0] - poses[:, 0, None]  # (N, P)
@@ -227,11 +235,11 @@ def pick_situations(db: Database, max_rows: int = 200_000) -> dict[str, int]:
     taken only when there is no other. A situation that does not occur is left out of the
     result, which keeps the paper's order.
     """
-    world = db.world
-    max_range = db.max_range
+    world, layout = db.world, db.layout
+    max_range = layout.max_range
     n = min(len(db), max_rows)
     poses = np.asarray(db.poses[:n], dtype=np.float64)  # (N, 3)
-    true = read_sensors(world, poses)  # (N, 5) noiseless
+    true = read_sensors(world, poses, layout)  # (N, 5) noiseless
     clearance = point_segment_distance(world.segments, poses[:, 0], poses[:, 1]).min(axis=1)
     nothing = events.nothing_in_view(true, max_range)
     all_hit = np.all(true < max_range * (1.0 - 1e-6), axis=1)  # (N,)
@@ -250,24 +258,27 @@ def pick_situations(db: Database, max_rows: int = 200_000) -> dict[str, int]:
     best("nothing", rows, -clearance[rows])
 
     rows = np.flatnonzero(all_hit)
-    walls = hit_walls(world, poses[rows])  # (M, 5)
+    walls = hit_walls(world, poses[rows], layout)  # (M, 5)
     same = np.all(walls == walls[:, :1], axis=1)
     best("line", rows[same], _symmetric_score(true[rows[same]], max_range))
 
-    corner = events.corner_in_view(world, poses[rows]) & ~same
+    corner = events.corner_in_view(world, poses[rows], layout) & ~same
     corners = events.corner_points(world)  # (C, 2)
-    best("corner", rows[corner], _bearing_score(world, poses[rows[corner]], corners, max_range))
+    best("corner", rows[corner], _bearing_score(world, poses[rows[corner]], corners, layout))
 
     rows = np.flatnonzero(left_hit & right_free)
-    clean = ~events.corner_in_view(world, poses[rows]) & ~_near(poses[rows], ends, max_range)
+    clean = ~events.corner_in_view(world, poses[rows], layout) & ~_near(
+        poses[rows], ends, max_range
+    )
     best("wall at its left", rows[clean], np.abs(true[rows[clean], 4] - max_range / 2))
 
     if len(ends):
-        rows = np.flatnonzero(events.wall_end_in_view(world, poses))
+        rows = np.flatnonzero(events.wall_end_in_view(world, poses, layout))
         end_walls = point_segment_distance(world.segments, ends[:, 0], ends[:, 1]).argmin(axis=1)
-        on = hit_walls(world, poses[rows])[:, :, None] == end_walls[None, None, :]  # (M, 5, E)
+        hit = hit_walls(world, poses[rows], layout)  # (M, 5) the wall each ray hits
+        on = hit[:, :, None] == end_walls[None, None, :]  # (M, 5, E)
         straddled = on.any(axis=1) & ~on.all(axis=1)  # (M, E) some rays on the wall, some past
-        score = _bearing_score(world, poses[rows], ends, max_range, straddled)
+        score = _bearing_score(world, poses[rows], ends, layout, straddled)
         best("wall end", rows, score)
 
     return {name: found[name] for name in SITUATIONS if name in found}
@@ -313,7 +324,7 @@ def perception_figure(
     world = db.world
     for i, ((name, row), ax) in enumerate(zip(situations.items(), axes, strict=True)):
         plot_perception(
-            world, db.poses[row], db.sensors[row], ax, max_range=db.max_range, view=view
+            world, db.poses[row], db.sensors[row], ax, db.layout.angles, db.max_range, view
         )
         caption = f"({chr(ord('a') + i)}) {SITUATIONS[name]}\n" if name in SITUATIONS else ""
         ax.set_title(f"{caption}{world.name}, row {row:,}", fontsize="medium")

@@ -214,6 +214,10 @@ def rollout(
     """
     if steps < 1:
         raise ValueError(f"steps must be at least 1, got {steps}")
+    if 0.0 not in layout.angles:
+        # the behaviour moves on (d < 1) only when every reading is >= 1: without a ray
+        # straight ahead a wall just in front would go unseen and be crossed
+        raise ValueError(f"the behaviour needs a ray straight ahead (angle 0), got {layout.angles}")
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     segments = np.ascontiguousarray(world.segments)
     angles = np.asarray(layout.angles, dtype=np.float64)
