@@ -14,7 +14,16 @@ import torch
 import sensorimotor.evaluate as ev
 from conftest import assert_one_line_error
 from sensorimotor.data import generate, load_database, save_database
-from sensorimotor.evaluate import baselines, load_run, prediction_error, run_model, split_tensors
+from sensorimotor.errors import InputError
+from sensorimotor.evaluate import (
+    baselines,
+    evaluate_run,
+    load_run,
+    prediction_error,
+    representation,
+    run_model,
+    split_tensors,
+)
 from sensorimotor.models import build_model
 from sensorimotor.sim import SensorLayout
 from sensorimotor.train import TrainConfig, train
@@ -196,3 +205,18 @@ def test_evaluate_prints_each_baseline_under_its_own_column(two_seeds, square_db
         if "square" in line and re.search(r"\d\.\d{5}", line)
     )
     assert re.findall(r"\d+\.\d{5}", row)[1:] == [f"{b['mean']:.5f}", f"{b['copy_last']:.5f}"]
+
+
+def test_runs_and_databases_may_be_paths_or_loaded(two_seeds, square_db_path):
+    run, db = load_run(two_seeds / "sm0"), load_database(square_db_path)
+    z = representation(run, db)
+    np.testing.assert_array_equal(representation(str(two_seeds / "sm0"), str(square_db_path)), z)
+    assert evaluate_run(two_seeds / "sm0", square_db_path) == evaluate_run(run, [db])
+    with pytest.raises(ValueError, match="unknown split 'testing': use one of train, val, test"):
+        representation(run, db, "testing")
+
+
+def test_errors_name_an_in_memory_database_by_its_world(two_seeds):
+    db = generate(load_world("square"), 20_000, seed=3, layout=SensorLayout(max_range=20.0))
+    with pytest.raises(InputError, match=r"^the in-memory database of square: sensor layout"):
+        representation(two_seeds / "sm0", db)

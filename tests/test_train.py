@@ -5,10 +5,12 @@ from __future__ import annotations
 import json
 import math
 import platform
+import re
 import signal
 import subprocess
 import sys
 import time
+from dataclasses import asdict
 
 import numpy as np
 import pytest
@@ -275,6 +277,31 @@ def test_unknown_model_is_refused(square_db_path, tmp_path, cli):
     assert_one_line_error(proc, "unknown model", "rec-sm")
 
 
+@pytest.mark.parametrize(
+    ("setting", "needle"),
+    [
+        ({"model": "lstm"}, "TrainConfig.model"),
+        ({"batch_size": 0}, "TrainConfig.batch_size must be an integer >= 1, got 0"),
+        ({"max_epochs": -1}, "TrainConfig.max_epochs"),
+        ({"seed": 1.5}, "TrainConfig.seed"),
+        ({"lr": "1e-3"}, "TrainConfig.lr must be a number"),
+        ({"lr": math.nan}, "TrainConfig.lr must be positive"),
+        ({"min_ratio": 1.2}, "TrainConfig.min_ratio must be at most 1"),
+        ({"max_minutes": 0}, "TrainConfig.max_minutes"),
+        ({"device": "tpu"}, "unknown device 'tpu'"),
+    ],
+)
+def test_a_setting_that_cannot_train_is_refused_by_name(setting, needle):
+    with pytest.raises(InputError, match=re.escape(needle)):
+        TrainConfig(**setting)
+
+
+def test_numpy_numbers_are_settings_too():
+    config = TrainConfig(seed=np.int64(3), max_epochs=np.int32(2), lr=np.float32(0.5))
+    assert json.dumps(asdict(config))  # config.json is JSON
+    assert (config.seed, config.max_epochs, config.lr) == (3, 2, 0.5)
+
+
 def test_corrupt_or_missing_checkpoint_is_refused(square_db_path, tmp_path, cli):
     run = tmp_path / "run"
     train(square_db_path, run, TrainConfig(model="s", max_epochs=1))
@@ -403,3 +430,13 @@ def test_keep_freed_memory_takes_effect_and_leaves_the_numbers_alone():
         return proc.stdout
 
     assert run("default") == run("keep")
+
+
+def test_train_takes_a_loaded_database_but_not_one_without_a_file(square_db_path, tmp_path):
+    config = TrainConfig(model="s", max_epochs=1)
+    loaded = train(load_database(square_db_path), tmp_path / "loaded", config)
+    by_path = train(square_db_path, tmp_path / "by_path", config)
+    assert loaded.best_val_error == by_path.best_val_error
+    with pytest.raises(InputError, match=r"save_database\(db, path\) first"):
+        train(generate(load_world("square"), 5_000, seed=0), tmp_path / "unsaved", config)
+    assert not (tmp_path / "unsaved").exists()

@@ -45,8 +45,15 @@ class Database:
         return len(self.sensors)
 
     @property
+    def source(self) -> str:
+        """What error messages call it: its file, or what it is when it has none."""
+        if self.path is not None:
+            return str(self.path)
+        return f"the in-memory database of {self.meta.get('world', {}).get('name', 'a world')}"
+
+    @property
     def world(self) -> World:
-        return world_from_dict(self.meta["world"], f"{self.path}: meta.world")
+        return world_from_dict(self.meta["world"], f"{self.source}: meta.world")
 
     @property
     def max_range(self) -> float:
@@ -68,8 +75,27 @@ class Database:
         return Database(self.sensors[s], self.motors[s], self.poses[s], self.meta, self.path)
 
 
+def as_database(db: Database | str | Path) -> Database:
+    """``db`` itself, or the database loaded from that file."""
+    return db if isinstance(db, Database) else load_database(db)
+
+
+def database_file(data: str | Path | Database) -> Path:
+    """The file of a database that training reads (its hash goes into the run folder)."""
+    if isinstance(data, Database):
+        if data.path is None:
+            raise InputError(
+                "training reads a database file (its hash identifies the run's data): "
+                "save_database(db, path) first and pass the path"
+            )
+        return Path(data.path)
+    return Path(data)
+
+
 def split_slice(n: int, name: str) -> slice:
     """Rows of split ``name`` in a database of ``n`` rows (train 80 %, val 10 %, test 10 %)."""
+    if name not in SPLITS:
+        raise ValueError(f"unknown split {name!r}: use one of {', '.join(SPLITS)}")
     lo, hi = SPLITS[name]
     return slice(math.floor(n * lo + 1e-9), math.floor(n * hi + 1e-9))
 

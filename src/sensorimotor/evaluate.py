@@ -9,13 +9,14 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from sensorimotor.data import Database, scale_motors, scale_sensors
+from sensorimotor.data import Database, as_database, scale_motors, scale_sensors
 from sensorimotor.errors import InputError
 from sensorimotor.models import ModelConfig, SensorimotorEncoder, build_model
 from sensorimotor.runs import load_weights_into, torch_load
@@ -129,38 +130,51 @@ def check_fits(run: Run, db: Database) -> None:
     layout = db.meta.get("sensor_layout")
     if trained and layout and trained != layout:
         raise InputError(
-            f"{db.path}: sensor layout {layout} does not fit run {run.path} (trained on {trained})"
+            f"{db.source}: sensor layout {layout} does not fit run {run.path} (trained on {trained})"
         )
     if db.sensors.shape[1] != run.model.config.n_sensors:
         raise InputError(
-            f"{db.path}: {db.sensors.shape[1]} sensors, the model reads {run.model.config.n_sensors}"
+            f"{db.source}: {db.sensors.shape[1]} sensors, the model reads {run.model.config.n_sensors}"
         )
 
 
-def representation(run: Run | str | Path, db: Database, split: str = "test") -> np.ndarray:
-    """z_s (n, 10) of a trained model over one split (recurrent: state carried from its start)."""
+def representation(
+    run: Run | str | Path, db: Database | str | Path, split: str = "test"
+) -> np.ndarray:
+    """z_s (n, 10) of a trained model over one split (recurrent: state carried from its start).
+    ``run`` and ``db`` may be loaded already or given by path."""
     if not isinstance(run, Run):
         run = load_run(run)
+    db = as_database(db)
     check_fits(run, db)
     s, m = split_tensors(db, split)
     if len(s) == 0:
-        raise InputError(f"{db.path}: the {split} split is empty")
+        raise InputError(f"{db.source}: the {split} split is empty")
     _, z = run_model(run.model, s, m)
     return z.numpy()
 
 
-def evaluate_run(run: Run, dbs: list[Database], split: str = "test") -> dict:
-    """Errors of one run on each database's split, with the baselines: the JSON of `evaluate`."""
+def evaluate_run(
+    run: Run | str | Path,
+    dbs: Sequence[Database | str | Path] | Database | str | Path,
+    split: str = "test",
+) -> dict:
+    """Errors of one run on each database's split, with the baselines: the JSON of `evaluate`.
+    ``run`` and the databases may be loaded already or given by path; one database or several."""
+    if not isinstance(run, Run):
+        run = load_run(run)
+    if isinstance(dbs, (Database, str, Path)):
+        dbs = [dbs]
     errors, base = {}, {}
-    for db in dbs:
+    for db in map(as_database, dbs):
         check_fits(run, db)
         s, m = split_tensors(db, split)
         if len(s) < 2:
-            raise InputError(f"{db.path}: the {split} split has fewer than 2 steps")
+            raise InputError(f"{db.source}: the {split} split has fewer than 2 steps")
         name = db.meta["world"]["name"]
         if name in errors:
             raise InputError(
-                f"{db.path}: a second test database of world {name!r}; give one per world"
+                f"{db.source}: a second test database of world {name!r}; give one per world"
             )
         errors[name] = model_error(run.model, s, m)
         base[name] = baselines(db, split)

@@ -12,6 +12,7 @@ import csv
 import io
 import json
 import math
+import numbers
 import warnings
 import zipfile
 import zlib
@@ -25,7 +26,7 @@ from sensorimotor import __version__
 from sensorimotor.data import Database, atomic_path, check_writable, file_hash
 from sensorimotor.data import write_text_atomic as _write_text
 from sensorimotor.errors import InputError
-from sensorimotor.models import ModelConfig
+from sensorimotor.models import MODEL_KINDS, ModelConfig
 
 if TYPE_CHECKING:
     from sensorimotor.train import FusedAdam
@@ -60,6 +61,32 @@ class TrainConfig:
     """cpu or cuda."""
     threads: int = 1
     """Torch threads (one is fastest for these tiny models; two in one process are slower)."""
+
+    def __post_init__(self) -> None:
+        """Refuse a setting that could not train, before any run folder is written; numpy
+        numbers become Python's (config.json is JSON)."""
+        if self.model not in MODEL_KINDS:
+            kinds = ", ".join(MODEL_KINDS)
+            raise InputError(f"TrainConfig.model: use one of {kinds}, got {self.model!r}")
+        if self.device not in ("auto", "cpu", "cuda"):
+            raise InputError(f"unknown device {self.device!r}: use auto, cpu or cuda")
+        counts = {"seed": 0, "batch_size": 1, "horizon": 1, "patience": 1, "threads": 1}
+        counts |= {} if self.max_epochs is None else {"max_epochs": 1}
+        for name, least in counts.items():
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < least:
+                raise InputError(f"TrainConfig.{name} must be an integer >= {least}, got {value!r}")
+            object.__setattr__(self, name, int(value))
+        positive = {"lr": self.lr, "min_ratio": self.min_ratio}
+        positive |= {} if self.max_minutes is None else {"max_minutes": self.max_minutes}
+        for name, value in positive.items():
+            if isinstance(value, bool) or not isinstance(value, numbers.Real):
+                raise InputError(f"TrainConfig.{name} must be a number, got {value!r}")
+            if not (math.isfinite(value) and value > 0):
+                raise InputError(f"TrainConfig.{name} must be positive and finite, got {value!r}")
+            object.__setattr__(self, name, float(value))
+        if self.min_ratio > 1:
+            raise InputError(f"TrainConfig.min_ratio must be at most 1, got {self.min_ratio!r}")
 
 
 @dataclass

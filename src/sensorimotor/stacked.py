@@ -42,7 +42,7 @@ import torch
 
 from sensorimotor import cuda_graphs
 from sensorimotor import train as train_mod
-from sensorimotor.data import load_database
+from sensorimotor.data import Database, database_file, load_database
 from sensorimotor.errors import InputError
 from sensorimotor.evaluate import split_tensors
 from sensorimotor.models import ModelConfig, SensorimotorEncoder, build_model
@@ -503,7 +503,7 @@ class _Run:
 
 
 def train_runs(
-    data: str | Path | Sequence[str | Path],
+    data: str | Path | Database | Sequence[str | Path | Database],
     runs: Sequence[tuple[int, str | Path]],
     config: TrainConfig,
     resume: bool = False,
@@ -517,9 +517,9 @@ def train_runs(
     continues from its checkpoint; seeds left at different epochs (a kill between two seeds'
     checkpoints) train in separate stacks, the lagging one first, and merge once caught up.
     """
-    if isinstance(data, (str, Path)):
+    if isinstance(data, (str, Path, Database)):
         data = [data] * len(runs)
-    paths = [Path(d) for d in data]
+    paths = [database_file(d) for d in data]
     if len(paths) != len(runs):
         raise ValueError(f"{len(paths)} databases for {len(runs)} runs")
     files = list(dict.fromkeys(paths))  # each database once, in order
@@ -672,7 +672,7 @@ def _merge_same_epoch(stacks):
 
 
 def train_seeds(
-    data: str | Path,
+    data: str | Path | Database,
     out: str | Path,
     config: TrainConfig,
     seeds: Sequence[int],
@@ -685,7 +685,7 @@ def train_seeds(
     ``nn.LSTM`` runs cuDNN, one seed after another (``train.train``), into the same folders.
     """
     seeds = check_seeds(seeds)
-    out = Path(out)
+    data, out = database_file(data), Path(out)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: exists and is not a folder")
     world = load_database(data).meta["world"]["name"]

@@ -20,7 +20,7 @@ from pathlib import Path
 import torch
 
 from sensorimotor import cuda_graphs
-from sensorimotor.data import Database, load_database
+from sensorimotor.data import Database, database_file, load_database
 from sensorimotor.errors import InputError
 from sensorimotor.evaluate import model_error, split_tensors
 from sensorimotor.models import ModelConfig, build_model
@@ -140,7 +140,7 @@ def check_trainable(db: Database, config: TrainConfig) -> None:
         have = len(db.take(split))
         if have < need + 1:
             raise InputError(
-                f"{db.path}: too small to train {config.model}: the {split} split has {have} steps, "
+                f"{db.source}: too small to train {config.model}: the {split} split has {have} steps, "
                 f"needs at least {need + 1} (database of {len(db):,} steps, train {n_train:,})"
             )
 
@@ -245,13 +245,14 @@ def stop_reason(config: TrainConfig, stopper: EarlyStopping, epoch: int, elapsed
 
 
 def train(
-    data: str | Path,
+    data: str | Path | Database,
     out: str | Path,
     config: TrainConfig,
     resume: bool = False,
     on_epoch: Callable[[EpochRecord, EarlyStopping], None] | None = None,
 ) -> TrainResult:
-    """Train one model on ``data`` into run folder ``out``; resumable after every epoch.
+    """Train one model on ``data`` (a database file, or a Database loaded from one) into run
+    folder ``out``; resumable after every epoch.
 
     On the CPU every model goes through ``stacked.train_runs`` (a stack of one, hand-written
     backward pass): S and SM give the numbers of ``train_epoch_feedforward`` with autograd,
@@ -262,12 +263,12 @@ def train(
     """
     from sensorimotor.stacked import train_runs, trains_stacked
 
+    data = database_file(data)
     device = resolve_device(config.device)
     if trains_stacked(config.model, device):
         callback = None if on_epoch is None else (lambda _seed, r, st: on_epoch(r, st))
         return train_runs(data, [(config.seed, out)], config, resume, callback)[0]
     out = Path(out)
-    data = Path(data)
     config = TrainConfig(**{**asdict(config), "device": device})
     db = load_database(data)
     check_trainable(db, config)

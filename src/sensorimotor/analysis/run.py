@@ -45,7 +45,7 @@ def representation_of(run, db: Database, split: str = SPLIT) -> np.ndarray:
     n = len(db.take(split))
     if n < N_CLUSTERS:
         raise InputError(
-            f"{db.path}: the {split} split has {n} steps; the analysis needs at least {N_CLUSTERS}"
+            f"{db.source}: the {split} split has {n} steps; the analysis needs at least {N_CLUSTERS}"
         )
     if isinstance(run, str) and run == RAW:
         return raw_representation(db.take(split).sensors, db.max_range)
@@ -77,7 +77,7 @@ def _analyze(run, db: Database, seed: int, fitted: RepresentationAnalysis | None
     kmeans, pca = (fitted.kmeans, fitted.pca) if fitted else (None, None)
     if fitted is not None and z.shape[1] != fitted.kmeans.n_features_in_:
         raise InputError(
-            f"{db.path}: {z.shape[1]}-d representation, the clusters were fitted on "
+            f"{db.source}: {z.shape[1]}-d representation, the clusters were fitted on "
             f"{fitted.kmeans.n_features_in_}-d ones"
         )
     return analyze_representation(
@@ -88,7 +88,7 @@ def _analyze(run, db: Database, seed: int, fitted: RepresentationAnalysis | None
 def _check_same_layout(fit_db: Database, db: Database) -> None:
     a, b = fit_db.meta.get("sensor_layout"), db.meta.get("sensor_layout")
     if a and b and a != b:
-        raise InputError(f"{db.path}: sensor layout {b} differs from {fit_db.path}'s {a}")
+        raise InputError(f"{db.source}: sensor layout {b} differs from {fit_db.source}'s {a}")
 
 
 def _out_dir(out: Path) -> Path:
