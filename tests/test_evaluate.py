@@ -156,6 +156,12 @@ def test_table_refuses_a_seed_given_twice(two_seeds, square_db_path, tmp_path, c
     assert_one_line_error(proc, "sm0_copy", "same world, model and seed")
 
 
+def test_table_refuses_seeds_of_one_row_trained_otherwise(two_seeds, square_db_path, tmp_path, cli):
+    train(square_db_path, tmp_path / "sm2", TrainConfig(model="sm", seed=2, max_epochs=1))
+    proc = cli("table", two_seeds / "sm0", tmp_path / "sm2", "--data", square_db_path)
+    assert_one_line_error(proc, "sm2", "other settings", "max_epochs: 2 -> 1")
+
+
 def test_paper_ordering_needs_rec_sm_below_sm_below_both_others():
     from sensorimotor.tables import paper_ordering_holds
 

@@ -275,19 +275,22 @@ def check_run_dir(out: Path, meta: dict, resume: bool) -> None:
                 "contents differ, sha256)"
             )
         for key in ("model", "train"):
-            a, b = old.get(key, {}), meta[key]
-            if key == "train":  # the caps may change between sessions; the algorithm may not
-                caps = ("max_epochs", "max_minutes")
-                a = {k: v for k, v in a.items() if k not in caps}
-                b = {k: v for k, v in b.items() if k not in caps}
-            changed = sorted(k for k in a.keys() | b.keys() if a.get(k) != b.get(k))
+            # the caps may change between sessions; the algorithm may not
+            changed = setting_changes(old.get(key, {}), meta[key], ("max_epochs", "max_minutes"))
             if changed:
                 raise InputError(
                     f"{out}: --resume with another {key} setting than the run was started with "
-                    f"({', '.join(f'{k}: {a.get(k)!r} -> {b.get(k)!r}' for k in changed)})"
+                    f"({changed})"
                 )
         if (out / "checkpoint.pt").exists():
             check_archive(out / "checkpoint.pt")  # before the run's config is rewritten
+
+
+def setting_changes(a: dict, b: dict, ignore: tuple[str, ...] = ()) -> str:
+    """``key: a -> b`` for each setting in which two configs differ, but those in ``ignore``;
+    empty if none."""
+    keys = sorted((a.keys() | b.keys()) - set(ignore))
+    return ", ".join(f"{k}: {a.get(k)!r} -> {b.get(k)!r}" for k in keys if a.get(k) != b.get(k))
 
 
 def open_run_dir(out: Path, meta: dict) -> None:

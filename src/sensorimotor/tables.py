@@ -6,6 +6,7 @@ from sensorimotor.data import Database
 from sensorimotor.errors import InputError
 from sensorimotor.evaluate import Run, baselines, evaluate_run, mean_sd
 from sensorimotor.models import MODEL_KINDS, MODEL_NAMES
+from sensorimotor.runs import setting_changes
 
 # The paper's Table I: models trained on Square, tested on each world (sum over sensors).
 PAPER_TABLE_I = {
@@ -32,10 +33,27 @@ def paper_ordering_holds(cells: dict[str, float]) -> bool | None:
     return cells["rec-sm"] < cells["sm"] < min(cells["rec-s"], cells["s"])
 
 
+# settings that do not make another experiment: the seed makes a row's spread, the others
+# change the speed only
+NOT_AN_EXPERIMENT = ("seed", "device", "threads", "max_minutes")
+
+
+def _experiment(run: Run) -> dict:
+    """A run's model and training settings but those in ``NOT_AN_EXPERIMENT``: the seeds of
+    one row of Table I must agree on them."""
+    train = run.config.get("train", {})
+    return {
+        **run.config.get("model", {}),
+        **{k: v for k, v in train.items() if k not in NOT_AN_EXPERIMENT},
+    }
+
+
 def build_table(runs: list[Run], dbs: list[Database], split: str = "test") -> dict:
     """Evaluate every run on every database: JSON-ready tables, one per training world.
-    InputError if two runs are one seed of one model and world (a seed counted twice)."""
+    InputError if two runs are one seed of one model and world (a seed counted twice), or
+    seeds of one row were trained with other settings (two experiments in one mean)."""
     seen: dict[tuple, Run] = {}
+    row_of: dict[tuple, Run] = {}  # (world, model) -> its first run
     for run in runs:
         key = (run.trained_on, run.kind, run.config.get("train", {}).get("seed"))
         if key in seen:
@@ -44,6 +62,13 @@ def build_table(runs: list[Run], dbs: list[Database], split: str = "test") -> di
                 "counted twice would shrink the spread)"
             )
         seen[key] = run
+        first = row_of.setdefault(key[:2], run)
+        changed = setting_changes(_experiment(first), _experiment(run))
+        if changed:
+            raise InputError(
+                f"{run.path}: trained with other settings than {first.path} ({changed}); one "
+                "row's mean and sd are over seeds of one experiment"
+            )
     per_run = [evaluate_run(run, dbs, split) for run in runs]
     base = {db.meta["world"]["name"]: baselines(db, split) for db in dbs}
     return table_from_results(per_run, base, [db.meta["world"]["name"] for db in dbs])
