@@ -14,7 +14,7 @@ from conftest import assert_one_line_error
 from sensorimotor import events, plots, sim
 from sensorimotor.data import generate, load_database
 from sensorimotor.errors import InputError
-from sensorimotor.world import BUILTIN_WORLDS, load_world, point_segment_distance
+from sensorimotor.world import BUILTIN_WORLDS, load_world, point_segment_distance, world_from_dict
 
 RED = to_rgba("red")
 
@@ -172,6 +172,20 @@ def test_generate_refuses_a_layout_the_encoders_or_the_behaviour_cannot_use():
         generate(world, 100, layout=sim.SensorLayout(angles=(-0.6, -0.3, 0.0, 0.3, 0.6, 0.9)))
     with pytest.raises(ValueError, match="straight ahead"):
         generate(world, 100, layout=sim.SensorLayout(angles=(-1.2, -0.6, 0.1, 0.6, 1.2)))
+
+
+def test_panels_take_the_shape_of_their_world():
+    hall = world_from_dict({"name": "hall", "size": [60, 20], "walls": []})
+    tower = world_from_dict({"name": "tower", "size": [20, 60], "walls": []})
+    assert tuple(plots.plot_world(load_world("square")).figure.get_size_inches()) == (3.2, 3.2)
+    width, height = plots.plot_world(hall).figure.get_size_inches()
+    assert width == 3.2
+    assert 1.2 < height < 1.6  # a third as high, and room for the tick labels
+    width, height = plots.plot_world(tower).figure.get_size_inches()
+    assert height == 3.2
+    assert width < 2.3
+    width, height = plots.worlds_figure([hall, hall]).get_size_inches()
+    assert width > 3 * height  # two flat panels side by side, not two squares
 
 
 # ----------------------------------------------------------------------------------- saving

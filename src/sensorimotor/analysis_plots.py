@@ -19,7 +19,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from sensorimotor.plots import PANEL_SIZE, plot_world
+from sensorimotor.plots import PANEL_SIZE, panel_size, plot_world, world_aspect
 from sensorimotor.world import World
 
 N_ARROWS = 500  # steps drawn per cluster (the paper's number)
@@ -138,7 +138,8 @@ def plot_clusters(
     ncols = min(ncols, len(ids))
     nrows = math.ceil(len(ids) / ncols)
     if fig is None:
-        size = (CLUSTER_PANEL * ncols, (CLUSTER_PANEL + 0.25) * nrows + (0.4 if suptitle else 0))
+        width, height = panel_size(world_aspect([world]), CLUSTER_PANEL, labels=0.0)  # no ticks
+        size = (width * ncols, (height + 0.25) * nrows + (0.4 if suptitle else 0))
         fig = Figure(figsize=size, layout="constrained")
     axes = np.atleast_1d(fig.subplots(nrows, ncols, squeeze=False)).ravel()
     for ax, c in zip(axes, ids, strict=False):

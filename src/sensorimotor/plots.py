@@ -52,12 +52,26 @@ SITUATIONS = {
 }
 
 
-def _new_axes(ax: Axes | None) -> Axes:
-    """``ax`` itself, or the Axes of a new single-panel Figure."""
+def panel_size(aspect: float, size: float = PANEL_SIZE, labels: float = 0.6) -> tuple[float, float]:
+    """(width, height) in inches of a panel showing a region ``aspect`` = height / width: its
+    longer side ``size``, plus up to ``labels`` inches along the shorter one for the tick labels
+    that a flat panel would otherwise squeeze, and a tall one at least 0.7 ``size`` wide for its
+    title (a square region: ``size`` by ``size``)."""
+    if aspect >= 1:
+        return max(size / aspect + labels * (1 - 1 / aspect), 0.7 * size), size
+    return size, size * aspect + labels * (1 - aspect)
+
+
+def world_aspect(worlds: Sequence[World]) -> float:
+    """The height / width of the tallest of ``worlds``, for panels that show them whole."""
+    return max(w.height / w.width for w in worlds)
+
+
+def _new_axes(ax: Axes | None, aspect: float = 1.0) -> Axes:
+    """``ax`` itself, or the Axes of a new single-panel Figure for a region of ``aspect``."""
     if ax is not None:
         return ax
-    fig = Figure(figsize=(PANEL_SIZE, PANEL_SIZE), layout="constrained")
-    return fig.add_subplot()
+    return Figure(figsize=panel_size(aspect), layout="constrained").add_subplot()
 
 
 # --------------------------------------------------------------------------- simulator figures
@@ -69,7 +83,7 @@ def plot_world(world: World, ax: Axes | None = None) -> Axes:
     The axis limits are the world, the aspect ratio is equal, and the title is the world's name.
     Walls are drawn unclipped so the outer ones are not cut in half by the axis frame.
     """
-    ax = _new_axes(ax)
+    ax = _new_axes(ax, world_aspect([world]))
     for x0, y0, x1, y1 in world.segments:
         ax.plot(
             [x0, x1],
@@ -125,7 +139,7 @@ def plot_perception(
     directions = heading + np.asarray(angles, dtype=np.float64)  # (R,)
     hx = x + sensors * np.cos(directions)  # (R,) perceived points
     hy = y + sensors * np.sin(directions)
-    ax = plot_world(world, ax)
+    ax = plot_world(world, ax if ax is not None or view is None else _new_axes(None))
     for px, py in zip(hx, hy, strict=True):
         ax.plot([x, px], [y, py], color="0.6", lw=0.6, alpha=0.8, gid="ray", zorder=2)
     hit = sensors < max_range * (1.0 - 1e-6)
@@ -287,14 +301,15 @@ def pick_situations(db: Database, max_rows: int = 200_000) -> dict[str, int]:
 # ------------------------------------------------------------------------ multi-panel figures
 
 
-def _row_of_axes(n: int) -> tuple[Figure, list[Axes]]:
-    fig = Figure(figsize=(PANEL_SIZE * n, PANEL_SIZE + 0.3), layout="constrained")
+def _row_of_axes(n: int, aspect: float = 1.0) -> tuple[Figure, list[Axes]]:
+    width, height = panel_size(aspect)
+    fig = Figure(figsize=(width * n, height + 0.3), layout="constrained")
     return fig, list(np.atleast_1d(fig.subplots(1, n)))
 
 
 def worlds_figure(worlds: Sequence[World]) -> Figure:
     """Paper Fig. 1: the worlds side by side."""
-    fig, axes = _row_of_axes(len(worlds))
+    fig, axes = _row_of_axes(len(worlds), world_aspect(worlds))
     for world, ax in zip(worlds, axes, strict=True):
         plot_world(world, ax)
     return fig
@@ -302,7 +317,7 @@ def worlds_figure(worlds: Sequence[World]) -> Figure:
 
 def trajectories_figure(dbs: Sequence[Database], steps: int = 10_000) -> Figure:
     """Paper Fig. 2: the first ``steps`` poses of each database over its world's walls."""
-    fig, axes = _row_of_axes(len(dbs))
+    fig, axes = _row_of_axes(len(dbs), world_aspect([db.world for db in dbs]))
     for db, ax in zip(dbs, axes, strict=True):
         plot_trajectory(db.world, db.poses[:steps], ax)
     return fig
@@ -320,8 +335,8 @@ def perception_figure(
     situations = pick_situations(db) if situations is None else situations
     if not situations:
         raise ValueError("no situation to draw")
-    fig, axes = _row_of_axes(len(situations))
     world = db.world
+    fig, axes = _row_of_axes(len(situations), 1.0 if view is not None else world_aspect([world]))
     for i, ((name, row), ax) in enumerate(zip(situations.items(), axes, strict=True)):
         plot_perception(
             world, db.poses[row], db.sensors[row], ax, db.layout.angles, db.max_range, view
