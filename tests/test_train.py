@@ -284,6 +284,7 @@ def test_unknown_model_is_refused(square_db_path, tmp_path, cli):
         ({"batch_size": 0}, "TrainConfig.batch_size must be an integer >= 1, got 0"),
         ({"max_epochs": -1}, "TrainConfig.max_epochs"),
         ({"seed": 1.5}, "TrainConfig.seed"),
+        ({"seed": 2**50}, "TrainConfig.seed must be at most 4294967295"),
         ({"lr": "1e-3"}, "TrainConfig.lr must be a number"),
         ({"lr": math.nan}, "TrainConfig.lr must be positive"),
         ({"min_ratio": 1.2}, "TrainConfig.min_ratio must be at most 1"),
@@ -439,4 +440,7 @@ def test_train_takes_a_loaded_database_but_not_one_without_a_file(square_db_path
     assert loaded.best_val_error == by_path.best_val_error
     with pytest.raises(InputError, match=r"save_database\(db, path\) first"):
         train(generate(load_world("square"), 5_000, seed=0), tmp_path / "unsaved", config)
+    with pytest.raises(InputError, match=r"\(test split\): training reads a whole database file"):
+        train(load_database(square_db_path).take("test"), tmp_path / "split", config)
     assert not (tmp_path / "unsaved").exists()
+    assert not (tmp_path / "split").exists()

@@ -4,4 +4,6 @@ __version__ = "0.1.0"
 
 from sensorimotor.errors import InputError
 
-__all__ = ["InputError", "__version__"]
+MAX_SEED = 2**32 - 1  # the largest seed that every seeded library here accepts
+
+__all__ = ["MAX_SEED", "InputError", "__version__"]

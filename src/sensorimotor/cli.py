@@ -11,7 +11,7 @@ import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-from sensorimotor import __version__
+from sensorimotor import MAX_SEED, __version__
 from sensorimotor.errors import InputError
 
 app = typer.Typer(
@@ -22,7 +22,6 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 err_console = Console(stderr=True, soft_wrap=True)
-MAX_SEED = 2**32 - 1  # what every seeded library here accepts
 
 WorldArg = Annotated[
     str, typer.Argument(help="World: square, rooms1, rooms2, or the path of a .toml world file.")
@@ -147,7 +146,10 @@ def train(
             left = f"  {max(0.0, 60 * max_minutes - r.elapsed) / 60:.1f} min left under the cap"
         if not started:  # the header waits for the first epoch: input errors stay one line
             started.append(True)
-            err_console.print(f"training {MODEL_NAMES[model]} on {data} (seed {seed}) -> {out}")
+            err_console.print(
+                f"training {MODEL_NAMES[model]} on {data} (seed {seed}{_autograd_note(model)}) "
+                f"-> {out}"
+            )
         mark = "*" if r.improved else " "
         err_console.print(
             f"epoch {r.epoch:3d}{mark} train {r.train_error:.5f}  val {r.val_error:.5f}  "
@@ -186,10 +188,19 @@ def _parse_seeds(text: str) -> list[int]:
     return check_seeds(values)
 
 
+def _autograd_note(model: str) -> str:
+    """What the training header adds when the model trains with autograd (an edited models.py)."""
+    from sensorimotor.stacked import computes_models_py
+
+    if computes_models_py(model):
+        return ""
+    return f", with autograd: models.py's {model} is not what stacked.py computes"
+
+
 def _train_seeds(model: str, data: Path, out: Path, config, seeds: list[int], resume: bool) -> None:
     """`train --seeds`: one run folder per seed under OUT, a line per seed and epoch."""
     from sensorimotor.models import MODEL_NAMES
-    from sensorimotor.stacked import computes_models_py, train_seeds, trains_stacked
+    from sensorimotor.stacked import train_seeds, trains_stacked
 
     started: list[bool] = []
 
@@ -197,8 +208,7 @@ def _train_seeds(model: str, data: Path, out: Path, config, seeds: list[int], re
         if not started:  # the header waits for the first epoch: input errors stay one line
             started.append(True)
             how = "stacked" if trains_stacked(model, config.device) else "one after another"
-            if not computes_models_py(model):
-                how += f", with autograd: models.py's {model} is not what stacked.py computes"
+            how += _autograd_note(model)
             err_console.print(
                 f"training {MODEL_NAMES[model]} on {data}, seeds {','.join(map(str, seeds))} "
                 f"({how}) -> {out}"

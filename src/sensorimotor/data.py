@@ -40,16 +40,20 @@ class Database:
     poses: np.ndarray = field(repr=False)  # (N, 3) float32 (x, y, heading) where s_t is read
     meta: dict
     path: Path | None = None
+    part: str | None = None  # the split it is (``take``), or None for the whole file
 
     def __len__(self) -> int:
         return len(self.sensors)
 
     @property
     def source(self) -> str:
-        """What error messages call it: its file, or what it is when it has none."""
-        if self.path is not None:
-            return str(self.path)
-        return f"the in-memory database of {self.meta.get('world', {}).get('name', 'a world')}"
+        """What error messages call it: its file (and split), or what it is when it has none."""
+        where = (
+            str(self.path)
+            if self.path is not None
+            else f"the in-memory database of {self.meta.get('world', {}).get('name', 'a world')}"
+        )
+        return where if self.part is None else f"{where} ({self.part} split)"
 
     @property
     def world(self) -> World:
@@ -72,7 +76,7 @@ class Database:
     def take(self, name: str) -> Database:
         """The rows of one split, as a Database of its own (views, no copy)."""
         s = self.split(name)
-        return Database(self.sensors[s], self.motors[s], self.poses[s], self.meta, self.path)
+        return Database(self.sensors[s], self.motors[s], self.poses[s], self.meta, self.path, name)
 
 
 def as_database(db: Database | str | Path) -> Database:
@@ -81,8 +85,14 @@ def as_database(db: Database | str | Path) -> Database:
 
 
 def database_file(data: str | Path | Database) -> Path:
-    """The file of a database that training reads (its hash goes into the run folder)."""
+    """The file of a database that training reads (its hash goes into the run folder): a
+    Database stands for the whole file it was loaded from, as it is on disk."""
     if isinstance(data, Database):
+        if data.part is not None:
+            raise InputError(
+                f"{data.source}: training reads a whole database file and splits it itself: "
+                "pass the file, not one split"
+            )
         if data.path is None:
             raise InputError(
                 "training reads a database file (its hash identifies the run's data): "

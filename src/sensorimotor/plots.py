@@ -139,7 +139,9 @@ def plot_perception(
     directions = heading + np.asarray(angles, dtype=np.float64)  # (R,)
     hx = x + sensors * np.cos(directions)  # (R,) perceived points
     hy = y + sensors * np.sin(directions)
-    ax = plot_world(world, ax if ax is not None or view is None else _new_axes(None))
+    if ax is None and view is not None:
+        ax = _new_axes(None)  # a square window, whatever the world's shape
+    ax = plot_world(world, ax)
     for px, py in zip(hx, hy, strict=True):
         ax.plot([x, px], [y, py], color="0.6", lw=0.6, alpha=0.8, gid="ray", zorder=2)
     hit = sensors < max_range * (1.0 - 1e-6)

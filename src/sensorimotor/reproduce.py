@@ -420,13 +420,6 @@ def reproduce(
     with _stage(rep, "train", log):
         from sensorimotor.stacked import computes_models_py, trains_stacked
 
-        for model in MODEL_KINDS:
-            if not computes_models_py(model):
-                log(
-                    f"  [yellow]models.py's {model} is not what stacked.py computes: it trains "
-                    "with autograd, one seed at a time (slower)"
-                )
-
         jobs, n_train = [], 0
         trains: dict[str, list[tuple[str, str, int]]] = {}  # job name -> the runs it trains
         stacks: dict[tuple, list] = {}  # (model,) or (model, world) -> runs of one stacked job
@@ -464,6 +457,13 @@ def reproduce(
             + (f" ({stacked} stacked)" if len(jobs) < n_train else "")
             + f", {len(rep.runs) - n_train} cached, {count(workers, 'worker')}"
         )
+        to_train = {model for runs in trains.values() for _, model, _ in runs}
+        for model in MODEL_KINDS:
+            if model in to_train and not computes_models_py(model):
+                log(
+                    f"  [yellow]models.py's {model} is not what stacked.py computes: it trains "
+                    "with autograd (slower)"
+                )
         overlapped = {"evaluate": 0, "analyze": 0}
 
         def then(name: str, _result) -> list[Job]:

@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 
 import torch
 
-from sensorimotor import __version__
+from sensorimotor import MAX_SEED, __version__
 from sensorimotor.data import Database, atomic_path, check_writable, file_hash
 from sensorimotor.data import write_text_atomic as _write_text
 from sensorimotor.errors import InputError
@@ -33,6 +33,13 @@ if TYPE_CHECKING:
 
 
 RUN_FILES = ("config.json", "model.pt", "checkpoint.pt", "history.csv", "result.json")
+DEVICES = ("auto", "cpu", "cuda")
+
+
+def check_device(device: str) -> None:
+    """Refuse a device name other than auto, cpu or cuda."""
+    if device not in DEVICES:
+        raise InputError(f"unknown device {device!r}: use auto, cpu or cuda")
 
 
 @dataclass(frozen=True)
@@ -68,8 +75,7 @@ class TrainConfig:
         if self.model not in MODEL_KINDS:
             kinds = ", ".join(MODEL_KINDS)
             raise InputError(f"TrainConfig.model: use one of {kinds}, got {self.model!r}")
-        if self.device not in ("auto", "cpu", "cuda"):
-            raise InputError(f"unknown device {self.device!r}: use auto, cpu or cuda")
+        check_device(self.device)
         counts = {"seed": 0, "batch_size": 1, "horizon": 1, "patience": 1, "threads": 1}
         counts |= {} if self.max_epochs is None else {"max_epochs": 1}
         for name, least in counts.items():
@@ -77,6 +83,8 @@ class TrainConfig:
             if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < least:
                 raise InputError(f"TrainConfig.{name} must be an integer >= {least}, got {value!r}")
             object.__setattr__(self, name, int(value))
+        if self.seed > MAX_SEED:
+            raise InputError(f"TrainConfig.seed must be at most {MAX_SEED}, got {self.seed}")
         positive = {"lr": self.lr, "min_ratio": self.min_ratio}
         positive |= {} if self.max_minutes is None else {"max_minutes": self.max_minutes}
         for name, value in positive.items():

@@ -97,43 +97,76 @@ def trains_stacked(model: str, device: str) -> bool:
     return (on_cpu or not ModelConfig(kind=model).recurrent) and computes_models_py(model)
 
 
+# the layers the hand-written passes know, taken at import (before anything can patch torch.nn)
+_KNOWN_LAYERS = (torch.nn.Sequential, torch.nn.Linear, torch.nn.ReLU, torch.nn.LSTM)
+
+
+def _known_layers(module: SensorimotorEncoder) -> bool:
+    """Whether every submodule is one the stack computes: Linear (with bias), ReLU, and a
+    plain LSTM (batch first, biases, no dropout, projection or second direction)."""
+    for sub in module.children():
+        for layer in sub.modules():
+            if type(layer) not in _KNOWN_LAYERS:
+                return False
+            if isinstance(layer, torch.nn.Linear) and layer.bias is None:
+                return False
+            if isinstance(layer, torch.nn.LSTM) and (
+                not layer.batch_first
+                or not layer.bias
+                or layer.dropout
+                or layer.bidirectional
+                or layer.proj_size
+            ):
+                return False
+    return True
+
+
 @functools.cache
 def computes_models_py(model: str) -> bool:
     """Whether the stack's hand-written passes compute what ``models.py`` computes for
-    ``model``: one step's loss and every gradient on a small random batch, against autograd
-    through the ``nn.Module``, to float32 rounding. They are written for the paper's layers
-    (Linear and ReLU; an LSTM); a model edited in ``models.py`` that they do not know (another
-    activation, another layer) fails this, and ``train.train`` then trains it with autograd.
-    Checked once per process, on the CPU, in about 10 ms."""
+    ``model``, checked once per process: its layers are those the passes know
+    (``_known_layers``), and two steps (recurrent: two chunks, the state carried) give the
+    loss and every gradient of autograd through the ``nn.Module``, to float32 rounding, on
+    inputs ten times wider than the data's so that activations leave the range a fresh model
+    sees. A model edited in ``models.py`` that fails this trains with autograd instead
+    (``train.train``). Tens of ms, and the first load of the numba kernels (about a second)."""
     from sensorimotor.stacked_lstm import forward_backward as recurrent_forward_backward
 
-    gen = torch.Generator().manual_seed(0)
     module = build_model(model, seed=0)
+    if not _known_layers(module):
+        return False
     c = module.config
-    t, b = (5, 8) if c.recurrent else (1, 32)  # time steps, streams or batch
-    xs, y = (
-        torch.rand(t, b, c.n_sensors, generator=gen),
-        torch.rand(t, b, c.n_sensors, generator=gen),
-    )
-    xm = torch.rand(t, b, c.n_motors, generator=gen) * 2 - 1
     try:
         net = StackedEncoders.from_models([module])
-        sq_sum = torch.zeros(1)
-        if c.recurrent:
-            recurrent_forward_backward(net, xs, xm, y, None, None, sq_sum)
-        else:
-            net.forward_backward(xs, xm, y, sq_sum.view(1, 1, 1))
-    except Exception:  # a layer the stack cannot even lay out
+    except (KeyError, ValueError, RuntimeError):  # parameters the stack cannot lay out
         return False
-    # the same step through the module, batch first: (B, T, .)
-    pred, _, _ = module(xs.transpose(0, 1), xm.transpose(0, 1))
-    loss = (pred - y.transpose(0, 1)).square().sum(-1).mean()
-    loss.backward()
-    ours = [g.reshape(p.shape) for g, p in zip(net.grads, module.parameters(), strict=True)]
-    return torch.allclose(sq_sum, loss.detach() * t * b, rtol=1e-4) and all(
-        torch.allclose(g, p.grad, rtol=1e-3, atol=1e-6)
-        for g, p in zip(ours, module.parameters(), strict=True)
-    )
+    gen = torch.Generator().manual_seed(0)
+    t, b = (5, 8) if c.recurrent else (1, 32)  # time steps, streams or batch
+    state = module_state = None
+    for _ in range(2):
+        xs = torch.rand(t, b, c.n_sensors, generator=gen) * 20 - 5  # (T, B, 5), time first
+        xm = torch.rand(t, b, c.n_motors, generator=gen) * 20 - 10
+        y = torch.rand(t, b, c.n_sensors, generator=gen)
+        sq_sum = torch.zeros(1)
+        try:
+            if c.recurrent:
+                state = recurrent_forward_backward(net, xs, xm, y, None, state, sq_sum)
+            else:
+                net.forward_backward(xs, xm, y, sq_sum.view(1, 1, 1))
+        except (KeyError, ValueError, RuntimeError):
+            return False
+        module.zero_grad()
+        pred, _, module_state = module(xs.transpose(0, 1), xm.transpose(0, 1), module_state)
+        if module_state is not None:
+            module_state = tuple(h.detach() for h in module_state)  # truncated, as training
+        loss = (pred - y.transpose(0, 1)).square().sum(-1).mean()
+        loss.backward()
+        if not torch.allclose(sq_sum, loss.detach() * t * b, rtol=1e-4):
+            return False
+        for g, p in zip(net.grads, module.parameters(), strict=True):
+            if (g.reshape(p.shape) - p.grad).abs().max() > 1e-4 * p.grad.abs().max() + 1e-7:
+                return False
+    return True
 
 
 def model_layout(config: ModelConfig) -> tuple[list[str], list[torch.Size], list[str]]:

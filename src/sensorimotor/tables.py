@@ -35,14 +35,15 @@ def paper_ordering_holds(cells: dict[str, float]) -> bool | None:
 
 # settings that do not make another experiment: the seed makes a row's spread, the others
 # change the speed only
-NOT_AN_EXPERIMENT = ("seed", "device", "threads", "max_minutes")
+NOT_AN_EXPERIMENT = ("seed", "device", "threads")
 
 
 def _experiment(run: Run) -> dict:
-    """A run's model and training settings but those in ``NOT_AN_EXPERIMENT``: the seeds of
-    one row of Table I must agree on them."""
+    """A run's data (its hash), model and training settings but those in
+    ``NOT_AN_EXPERIMENT``: the seeds of one row of Table I must agree on them."""
     train = run.config.get("train", {})
     return {
+        "data sha256": run.config.get("data", {}).get("sha256"),
         **run.config.get("model", {}),
         **{k: v for k, v in train.items() if k not in NOT_AN_EXPERIMENT},
     }

@@ -29,6 +29,7 @@ from sensorimotor.runs import (
     EpochRecord,
     TrainConfig,
     TrainResult,
+    check_device,
     check_run_dir,
     finish_run,
     load_checkpoint,
@@ -221,10 +222,9 @@ def resolve_device(device: str) -> str:
     """The device to train on ("cpu" or "cuda") for "auto", "cpu" or "cuda". On CUDA every
     product is float32, as on the CPU: cuDNN's LSTM would otherwise run in TF32 (gradients
     3e-4 off the CPU's, against 7e-6)."""
+    check_device(device)
     if device == "auto":
         device = "cuda" if torch.cuda.is_available() else "cpu"
-    if device not in ("cpu", "cuda"):
-        raise InputError(f"unknown device {device!r}: use auto, cpu or cuda")
     if device == "cuda":
         if not torch.cuda.is_available():
             raise InputError("--device cuda: no CUDA device is available here")
