@@ -435,3 +435,12 @@ def test_heading_probes_are_not_swapped():
     got = an.position_scores(z, poses, seed=0)
     assert got["r2_cos_heading"] > 0.99
     assert got["r2_sin_heading"] < 0.1
+
+
+def test_the_analysis_refuses_readings_that_are_not_the_layouts(square_test):
+    world, part = square_test
+    z = an.raw_representation(part.sensors)
+    with pytest.raises(ValueError, match=r"sensors must be \(N, 5\)"):
+        an.analyze_representation(z, part.sensors[:, :4], part.poses, world)
+    with pytest.raises(ValueError, match="poses \\(N, 3\\)"):
+        an.analyze_representation(z, part.sensors, part.poses[:, :2], world)

@@ -241,6 +241,25 @@ def test_a_database_is_keyed_by_its_size_and_a_run_by_its_scales_patience():
     assert _train_config(SCALES["quick"], "rec-sm", "cpu")["max_epochs"] == 80
 
 
+def test_a_kept_run_is_retrained_when_its_data_settings_or_model_sizes_change(
+    square_db_path, tmp_path
+):
+    from sensorimotor.data import file_hash
+    from sensorimotor.reproduce import run_matches
+    from sensorimotor.train import TrainConfig, train
+
+    config = {"model": "s", "max_epochs": 1}
+    run = train(square_db_path, tmp_path / "run", TrainConfig(**config)).run_dir
+    sha = file_hash(square_db_path)
+    assert run_matches(run, sha, config)
+    assert not run_matches(run, "other data", config)
+    assert not run_matches(run, sha, {**config, "max_epochs": 2})
+    made = json.loads((run / "config.json").read_text())
+    made["model"]["z_sensors"] = 3  # trained when models.py gave z_s 3 dimensions
+    (run / "config.json").write_text(json.dumps(made))
+    assert not run_matches(run, sha, config)
+
+
 def test_a_kept_analysis_is_redone_when_the_metrics_change(tmp_path, monkeypatch):
     import sensorimotor.analysis as analysis
     from sensorimotor.reproduce import _analysis_job_of

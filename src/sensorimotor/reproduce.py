@@ -110,15 +110,22 @@ def _data_key(world: str, sc: Scale) -> str:
 
 
 def run_matches(run: Path, data_sha: str, config: dict) -> bool:
-    """Whether a run folder was made from this data and this training configuration."""
+    """Whether a run folder was made from this data, this training configuration and the
+    model sizes ``models.py`` gives now."""
+    from sensorimotor.models import ModelConfig
     from sensorimotor.train import TrainConfig
 
     try:
         made = json.loads((run / "config.json").read_text())
     except (OSError, ValueError):
         return False
-    want = {k: v for k, v in asdict(TrainConfig(**config)).items() if k != "device"}
-    return made.get("data", {}).get("sha256") == data_sha and made.get("train") == want
+    train = TrainConfig(**config)
+    want = {k: v for k, v in asdict(train).items() if k != "device"}
+    return (
+        made.get("data", {}).get("sha256") == data_sha
+        and made.get("train") == want
+        and made.get("model") == ModelConfig(kind=train.model).to_dict()
+    )
 
 
 # Core-seconds one seed took in its stack in the paper grid on a 2-core CPU (docs/results.md):

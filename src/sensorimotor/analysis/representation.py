@@ -109,6 +109,11 @@ def analyze_representation(
         raise ValueError(
             f"z, sensors and poses differ in rows: {len(z)}, {len(sensors)}, {len(poses)}"
         )
+    if sensors.ndim != 2 or sensors.shape[1] != len(layout.angles) or poses.shape[1:] != (3,):
+        raise ValueError(
+            f"sensors must be (N, {len(layout.angles)}) for the layout's rays and poses (N, 3), "
+            f"got {sensors.shape} and {poses.shape}"
+        )
     transfer = kmeans is not None
     pca = pca if pca is not None else fit_pca(z, seed)
     kmeans = kmeans if kmeans is not None else fit_kmeans(z, k, seed)
