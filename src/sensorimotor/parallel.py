@@ -72,7 +72,10 @@ def _stop_workers(pool: ProcessPoolExecutor) -> None:
     for process in processes:
         process.terminate()
     for process in processes:
-        process.join(timeout=10)
+        process.join(timeout=3)
+        if process.is_alive():  # SIGTERM not acted on: a worker must not outlive the command
+            process.kill()
+            process.join(timeout=5)
 
 
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
