@@ -162,6 +162,14 @@ def test_table_refuses_seeds_of_one_row_trained_otherwise(two_seeds, square_db_p
     assert_one_line_error(proc, "sm2", "other settings", "max_epochs: 2 -> 1")
 
 
+def test_table_refuses_seeds_of_one_row_trained_on_other_data(two_seeds, tmp_path, cli):
+    other = tmp_path / "square_seed9.npz"
+    save_database(generate(load_world("square"), 20_000, seed=9), other)
+    train(other, tmp_path / "sm2", TrainConfig(model="sm", seed=2, max_epochs=2))
+    proc = cli("table", two_seeds / "sm0", tmp_path / "sm2", "--data", other)
+    assert_one_line_error(proc, "sm2", "other settings", "data sha256")
+
+
 def test_paper_ordering_needs_rec_sm_below_sm_below_both_others():
     from sensorimotor.tables import paper_ordering_holds
 

@@ -170,6 +170,17 @@ def test_the_check_sees_edits_that_one_fresh_step_would_not(edit, kinds, monkeyp
         stacked_mod.computes_models_py.cache_clear()
 
 
+def test_the_check_refuses_a_layer_it_does_not_know_even_where_it_agrees(monkeypatch):
+    # a ReLU clipped far beyond any activation: equal numbers on every input the check tries
+    monkeypatch.setattr(torch.nn, "ReLU", lambda: torch.nn.Hardtanh(0.0, 1e9))
+    stacked_mod.computes_models_py.cache_clear()
+    try:
+        assert not stacked_mod._known_layers(build_model("sm", seed=0))
+        assert not stacked_mod.computes_models_py("sm")
+    finally:
+        stacked_mod.computes_models_py.cache_clear()
+
+
 def test_the_autograd_fallback_trains_what_the_stack_trains(square_db_path, tmp_path, monkeypatch):
     config = TrainConfig(model="sm", max_epochs=1)  # float32 drift grows over more epochs
     stacked = train(square_db_path, tmp_path / "stacked", config)
