@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import json
 import math
 import platform
@@ -346,6 +347,20 @@ def test_a_time_cap_counts_earlier_sessions_and_lifting_it_goes_on(square_db_pat
     assert (res.stopped, res.epochs) == ("time cap", 1)
     res = train(square_db_path, run, TrainConfig(model="s", max_epochs=3), resume=True)
     assert (res.stopped, res.epochs) == ("max epochs", 3)
+
+
+def test_history_counts_the_training_time_over_sessions(square_db_path, tmp_path):
+    train(square_db_path, tmp_path / "r", TrainConfig(model="s", max_epochs=2))
+    result = train(
+        square_db_path, tmp_path / "r", TrainConfig(model="s", max_epochs=3), resume=True
+    )
+    rows = list(csv.DictReader((tmp_path / "r" / "history.csv").read_text().splitlines()))
+    elapsed = [float(r["elapsed"]) for r in rows]
+    seconds = [float(r["seconds"]) for r in rows]
+    assert len(rows) == 3
+    assert elapsed == sorted(elapsed)
+    assert elapsed[-1] >= sum(seconds) - 0.01  # each epoch's training, and its validation
+    assert elapsed[-1] == pytest.approx(result.seconds, abs=1e-3)
 
 
 def test_cli_max_minutes_caps_training(square_db_path, tmp_path, cli):

@@ -220,7 +220,16 @@ def _history_csv(history: list[EpochRecord]) -> str:
     buf = io.StringIO()
     writer = csv.writer(buf)
     writer.writerow(
-        ["epoch", "train_error", "val_error", "improved", "best", "seconds", "samples_per_s"]
+        [
+            "epoch",
+            "train_error",
+            "val_error",
+            "improved",
+            "best",
+            "seconds",
+            "samples_per_s",
+            "elapsed",  # training seconds so far, over every session of a resumed run
+        ]
     )
     for r in history:
         writer.writerow(
@@ -232,6 +241,7 @@ def _history_csv(history: list[EpochRecord]) -> str:
                 int(r.best),
                 f"{r.seconds:.3f}",
                 f"{r.samples_per_s:.0f}",
+                f"{r.elapsed:.3f}",
             ]
         )
     return buf.getvalue()
