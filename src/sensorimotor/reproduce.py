@@ -458,10 +458,15 @@ def reproduce(
         jobs.sort(key=lambda job: -sum(SEED_COST[model] for _, model, _ in trains[job.name]))
         n_jobs = len(jobs)
         rep.timings["train"] = {"jobs": n_train, "cached": len(rep.runs) - n_train}
-        stacked = "seeds" if trains_stacked("rec-sm", device) else "S and SM seeds"
+        stacked = ""
+        if len(jobs) < n_train:  # some job trains a stack; asked only then (it loads numba)
+            stacked = (
+                " (seeds stacked)"
+                if trains_stacked("rec-sm", device)
+                else " (S and SM seeds stacked)"
+            )
         log(
-            f"  {count(n_train, 'training')} to run in {count(len(jobs), 'job')}"
-            + (f" ({stacked} stacked)" if len(jobs) < n_train else "")
+            f"  {count(n_train, 'training')} to run in {count(len(jobs), 'job')}{stacked}"
             + f", {len(rep.runs) - n_train} cached, {count(workers, 'worker')}"
         )
         to_train = {model for runs in trains.values() for _, model, _ in runs}

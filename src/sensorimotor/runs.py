@@ -33,12 +33,11 @@ if TYPE_CHECKING:
 
 
 RUN_FILES = ("config.json", "model.pt", "checkpoint.pt", "history.csv", "result.json")
-DEVICES = ("auto", "cpu", "cuda")
 
 
 def check_device(device: str) -> None:
     """Refuse a device name other than auto, cpu or cuda."""
-    if device not in DEVICES:
+    if device not in ("auto", "cpu", "cuda"):
         raise InputError(f"unknown device {device!r}: use auto, cpu or cuda")
 
 

@@ -104,20 +104,19 @@ _KNOWN_LAYERS = (torch.nn.Sequential, torch.nn.Linear, torch.nn.ReLU, torch.nn.L
 def _known_layers(module: SensorimotorEncoder) -> bool:
     """Whether every submodule is one the stack computes: Linear (with bias), ReLU, and a
     plain LSTM (batch first, biases, no dropout, projection or second direction)."""
-    for sub in module.children():
-        for layer in sub.modules():
-            if type(layer) not in _KNOWN_LAYERS:
-                return False
-            if isinstance(layer, torch.nn.Linear) and layer.bias is None:
-                return False
-            if isinstance(layer, torch.nn.LSTM) and (
-                not layer.batch_first
-                or not layer.bias
-                or layer.dropout
-                or layer.bidirectional
-                or layer.proj_size
-            ):
-                return False
+    for layer in list(module.modules())[1:]:  # the encoder itself aside
+        if type(layer) not in _KNOWN_LAYERS:
+            return False
+        if isinstance(layer, torch.nn.Linear) and layer.bias is None:
+            return False
+        if isinstance(layer, torch.nn.LSTM) and (
+            not layer.batch_first
+            or not layer.bias
+            or layer.dropout
+            or layer.bidirectional
+            or layer.proj_size
+        ):
+            return False
     return True
 
 
