@@ -48,7 +48,7 @@ from sensorimotor.world import load_world
 BATCH, HORIZON = 64, 20
 EPOCH_STEPS = 800_000  # train split of a 1 M-step database
 TARGETS = {"s": 190e3, "sm": 130e3, "rec-s": 320e3, "rec-sm": 320e3}  # samples/s
-STACK_TARGET = 3.0  # five stacked seeds: total samples/s over that of one
+STACK_TARGET = 3.0  # five stacked seeds: total samples/s over one seed's plain loop
 NAMES = {"s": "S", "sm": "SM", "rec-s": "Rec-S", "rec-sm": "Rec-SM"}
 
 
@@ -238,12 +238,11 @@ def main() -> None:
                 one = total
                 met = "met" if total >= TARGETS[kind] else "NOT met"
                 target = f">= {TARGETS[kind] / 1e3:.0f} k: {met}"
-            elif k == 5:
-                ratio = total / one
-                met = "met" if ratio >= STACK_TARGET else "NOT met"
-                target = f"{ratio:.2f}x one (>= {STACK_TARGET:.0f}x): {met}"
+            elif k == 5:  # the "one" is a seed trained the plain way
+                met = "met" if total / plain >= STACK_TARGET else "NOT met"
+                target = f">= {STACK_TARGET:.0f}x plain: {met}; {total / one:.2f}x K = 1"
             else:
-                target = f"{total / one:.2f}x one"
+                target = f"{total / one:.2f}x K = 1"
             row(kind, f"stacked, K = {k}", per_seed, total, k * n / cpu, plain, target)
         console.print(f"  {kind} done ({load()})")
 
@@ -270,7 +269,7 @@ def main() -> None:
         for k in (1, 5):
             total, cpu = bench_rec(kind, k, rec_n, warm_n, 1, repeats)
             one = one or total
-            target = "" if k == 1 else f"{total / one:.2f}x one"
+            target = "" if k == 1 else f"{total / one:.2f}x K = 1"
             row(kind, f"stacked LSTM, K = {k}", total / k, total, cpu, plain, target)
         total, cpu = bench_rec(kind, 0, rec_n, warm_n, 2, repeats)
         row(kind, "2 processes, plain loop", total / 2, total, cpu, plain)

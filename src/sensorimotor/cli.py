@@ -462,7 +462,7 @@ def reproduce(
             help="smoke: 20,000-step databases, 2 epochs a model, 1 seed (about a minute; it "
             "tests the pipeline, not the paper). quick: 200,000 steps, epochs capped at 10 (S, "
             "SM), 30 (Rec-S), 80 (Rec-SM), 1 seed (a few minutes). paper: the paper's protocol, "
-            "1,000,000 steps, early stopping, 5 seeds (about 50 min on 2 CPU cores)."
+            "1,000,000 steps, early stopping, 5 seeds (35-50 min on 2 CPU cores, by CPU)."
         ),
     ] = "quick",
     out: Annotated[Path, typer.Option(help="Output folder (cached stages are reused).")] = Path(
