@@ -10,6 +10,10 @@ loop measured in the same run (for the recurrent models, with glibc's default al
 time of one epoch over an 800,000-step train split (a 1 M-step database) is extrapolated from
 the samples/s.
 
+Every measure starts from fresh weights, so it does not see what late epochs meet: Adam
+moments decaying through the subnormal range, which slowed S and SM epochs by up to 1.7x on an
+Intel Xeon until training flushed them (``train.flush_subnormals``; the bench flushes too).
+
 The data are a generated Square database. Each measurement is the best of a few repeats of a
 fixed number of batches after a warm-up. Wall-clock numbers move with the machine's load,
 printed above and below the table; the cpu-time column (this process's own CPU seconds) moves
@@ -102,6 +106,7 @@ def _rec_worker(kind, k, n, warm_n, keep, barrier, results, device="cpu", graphs
     replayed as graphs unless ``graphs`` is False), else a stack of ``k`` seeds
     (``stacked_lstm``); timed from a start common to all processes."""
     torch.set_num_threads(1)
+    torch.set_flush_denormal(True)  # as training runs (train.flush_subnormals)
     cuda_graphs.ENABLED = graphs
     if keep:
         keep_freed_memory()
@@ -187,6 +192,7 @@ def main() -> None:
     repeats = args.repeats or (1 if args.quick else 3)
     torch.set_num_threads(1)
     keep_freed_memory()  # as train.train and stacked.train_runs do
+    torch.set_flush_denormal(True)  # likewise (train.flush_subnormals)
     console = Console(width=150)
     where = torch.backends.cpu.get_cpu_capability()
     if device == "cuda":

@@ -459,3 +459,25 @@ def test_train_takes_a_loaded_database_but_not_one_without_a_file(square_db_path
         train(load_database(square_db_path).take("test"), tmp_path / "split", config)
     assert not (tmp_path / "unsaved").exists()
     assert not (tmp_path / "split").exists()
+
+
+def _subnormal_survives() -> bool:
+    return float(torch.tensor(1e-39) * 1.0) != 0.0  # 1e-39 is subnormal in float32
+
+
+@pytest.mark.parametrize("path", ["stack", "autograd loop"])
+def test_training_flushes_subnormals_and_restores_the_mode(
+    path, square_db_path, tmp_path, monkeypatch
+):
+    import sensorimotor.stacked as stacked_mod
+
+    during = []
+    record = lambda *args: during.append(_subnormal_survives())  # noqa: E731
+    config = TrainConfig(model="s", max_epochs=1)
+    if path == "stack":
+        stacked_mod.train_runs(square_db_path, [(0, tmp_path / "run")], config, on_epoch=record)
+    else:
+        monkeypatch.setattr(stacked_mod, "computes_models_py", lambda model: False)
+        train(square_db_path, tmp_path / "run", config, on_epoch=record)
+    assert during == [False]  # flushed while training
+    assert _subnormal_survives()  # and as before once it returns

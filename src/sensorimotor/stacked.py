@@ -534,6 +534,7 @@ class _Run:
     result: TrainResult | None = None
 
 
+@train_mod.flush_subnormals()
 def train_runs(
     data: str | Path | Database | Sequence[str | Path | Database],
     runs: Sequence[tuple[int, str | Path]],

@@ -12,8 +12,9 @@ fused; nothing in the step loop talks to the host. What a run is and what its fo
 
 from __future__ import annotations
 
+import contextlib
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import asdict
 from pathlib import Path
 
@@ -218,6 +219,30 @@ def keep_freed_memory() -> bool:
         return False
 
 
+@contextlib.contextmanager
+def flush_subnormals() -> Iterator[None]:
+    """Within the block, this thread's float arithmetic treats subnormal numbers (below
+    1.2e-38 in float32) as zero; on leaving it, the mode it found is restored.
+
+    Adam's moments of a weight whose gradient is 0 (a dead ReLU unit) decay geometrically
+    through the subnormal range, and on some x86 CPUs every operation on a subnormal takes a
+    slow path: on an Intel Xeon, S and SM epochs slowed by 1.7x as training went on. Flushed,
+    they do not; the weights stay the same bit for bit (8 epochs of three SM seeds on the 1 M
+    Square, checked with ``torch.equal``), as a number that small moves no weight in float32.
+    """
+    was = _flushing()
+    torch.set_flush_denormal(True)
+    try:
+        yield
+    finally:
+        torch.set_flush_denormal(was)
+
+
+def _flushing() -> bool:
+    """Whether this thread flushes subnormals: 1e-39 (subnormal in float32) times 1 is 0."""
+    return float(torch.tensor(1e-39) * 1.0) == 0.0
+
+
 def resolve_device(device: str) -> str:
     """The device to train on ("cpu" or "cuda") for "auto", "cpu" or "cuda". On CUDA every
     product is float32, as on the CPU: cuDNN's LSTM would otherwise run in TF32 (gradients
@@ -244,6 +269,7 @@ def stop_reason(config: TrainConfig, stopper: EarlyStopping, epoch: int, elapsed
     return None
 
 
+@flush_subnormals()
 def train(
     data: str | Path | Database,
     out: str | Path,
