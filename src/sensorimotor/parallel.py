@@ -144,11 +144,14 @@ def run_jobs(
                 name, message = progress_queue.get(timeout=0.1)
             except queue_mod.Empty:
                 continue
+            except (EOFError, OSError, ValueError):  # a worker killed mid-message
+                return
             if on_progress is not None:
                 on_progress(name, message)
 
     printer = threading.Thread(target=pump, daemon=True)
     printer.start()
+    interrupted = False
     try:
         with ProcessPoolExecutor(
             max_workers=workers if then is not None else min(workers, len(jobs)),
@@ -172,12 +175,15 @@ def run_jobs(
                             continue
                         pending.update({pool.submit(j.fn, *j.args): j for j in more})
             except KeyboardInterrupt:
+                interrupted = True
                 _stop_workers(pool)
                 raise
     finally:
         stop.set()
-        printer.join()
-        while True:  # flush what is left
+        # A worker stopped while writing leaves half a message, which a read would wait on for
+        # ever: after Ctrl-C, neither wait for the printer nor read what is left.
+        printer.join(timeout=1 if interrupted else None)
+        while not interrupted:  # flush what is left
             try:
                 name, message = progress_queue.get_nowait()
             except (queue_mod.Empty, OSError, ValueError):
