@@ -472,7 +472,10 @@ def test_training_flushes_subnormals_and_restores_the_mode(
     import sensorimotor.stacked as stacked_mod
 
     during = []
-    record = lambda *args: during.append(_subnormal_survives())  # noqa: E731
+
+    def record(*_):
+        during.append(_subnormal_survives())
+
     config = TrainConfig(model="s", max_epochs=1)
     if path == "stack":
         stacked_mod.train_runs(square_db_path, [(0, tmp_path / "run")], config, on_epoch=record)
