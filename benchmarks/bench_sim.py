@@ -22,8 +22,9 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
-from sensorimotor import __version__, sim
-from sensorimotor.world import BUILTIN_WORLDS, load_world
+from sensorimotor.sim import core as sim
+from sensorimotor.sim.world import BUILTIN_WORLDS, load_world
+from sensorimotor.version import __version__
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 import reference_sim as ref  # the oracle lives in tests/

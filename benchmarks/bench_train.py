@@ -1,10 +1,11 @@
 """Benchmark of training throughput at batch 64 on the CPU (or a GPU), one torch thread per process.
 
-For S and SM: the plain eager loop (``train.train_epoch_feedforward``: nn.Module, autograd,
-``train.FusedAdam``) beside the stacked path (``stacked.train_epoch_stacked``) with K = 1, 5
-and 10 seeds at once. For Rec-S and Rec-SM, in worker processes of one thread: the plain loop
-(``train.train_epoch_recurrent``, nn.LSTM) with glibc's default allocator and with
-``train.keep_freed_memory`` (as training runs), the stacked LSTM (``stacked_lstm``) with K = 1
+For S and SM: the plain eager loop (``engine.train_epoch_feedforward``: nn.Module, autograd,
+``adam.FusedAdam``) beside the stacked path (``fast.stacked.train_epoch_stacked``) with K = 1, 5
+and 10 seeds at once, and the candidate that derives the stacked passes from ``models.py``
+with ``torch.func`` (K = 1 and 5). For Rec-S and Rec-SM, in worker processes of one thread: the
+plain loop (``engine.train_epoch_recurrent``, nn.LSTM) with glibc's default allocator and with
+``fast.cpu.keep_freed_memory`` (as training runs), the stacked LSTM (``stacked_lstm``) with K = 1
 and 5 seeds, and two processes at once (as ``reproduce`` runs them). Every ratio is to the plain
 loop measured in the same run (for the recurrent models, with glibc's default allocator); the
 time of one epoch over an 800,000-step train split (a 1 M-step database) is extrapolated from
@@ -12,7 +13,7 @@ the samples/s.
 
 Every measure starts from fresh weights, so it does not see what late epochs meet: Adam
 moments decaying through the subnormal range, which slowed S and SM epochs by up to 1.7x on an
-Intel Xeon until training flushed them (``train.flush_subnormals``; the bench flushes too).
+Intel Xeon until training flushed them (``fast.cpu.flush_subnormals``; the bench flushes too).
 
 The data are a generated Square database. Each measurement is the best of a few repeats of a
 fixed number of batches after a warm-up. Wall-clock numbers move with the machine's load,
@@ -35,19 +36,18 @@ import torch
 from rich.console import Console
 from rich.table import Table
 
-from sensorimotor import __version__, cuda_graphs
-from sensorimotor.data import generate, scale_motors, scale_sensors
-from sensorimotor.models import build_model
-from sensorimotor.stacked import StackedEncoders, train_epoch_stacked
-from sensorimotor.stacked_lstm import train_epoch_stacked_recurrent
-from sensorimotor.train import (
-    FusedAdam,
-    epoch_generator,
-    keep_freed_memory,
-    train_epoch_feedforward,
-    train_epoch_recurrent,
-)
-from sensorimotor.world import load_world
+from sensorimotor.learn.adam import FusedAdam
+from sensorimotor.learn.batches import epoch_generator, epoch_orders
+from sensorimotor.learn.engine import train_epoch_feedforward, train_epoch_recurrent
+from sensorimotor.learn.fast import cuda_graphs
+from sensorimotor.learn.fast.cpu import keep_freed_memory
+from sensorimotor.learn.fast.private import adam_
+from sensorimotor.learn.fast.stacked import StackedEncoders, train_epoch_stacked
+from sensorimotor.learn.fast.stacked_lstm import train_epoch_stacked_recurrent
+from sensorimotor.learn.models import build_model
+from sensorimotor.sim.database import generate, scale_motors, scale_sensors
+from sensorimotor.sim.world import load_world
+from sensorimotor.version import __version__
 
 BATCH, HORIZON = 64, 20
 EPOCH_STEPS = 800_000  # train split of a 1 M-step database
@@ -101,12 +101,47 @@ def bench_stacked(kind, k, s, m, warm, repeats):
     return timed(lambda i: train_epoch_stacked(net, s, m, seeds, i, BATCH), repeats, s.device)
 
 
+def bench_func(kind, k, s, m, warm, repeats):
+    """The candidate that derives the stacked passes from ``models.py`` itself: each step is
+    ``torch.func.vmap(grad(loss))`` over the seeds' stacked weights, the loss calling the
+    ``nn.Module`` through ``functional_call``, then the stacked Adam step. Same data order and
+    batches as ``train_epoch_stacked`` (no 64-byte alignment of the seeds' slabs)."""
+    from torch.func import functional_call, grad, vmap
+
+    seeds = list(range(k))
+    models = [build_model(kind, seed=sd).to(s.device) for sd in seeds]
+    names = [name for name, _ in models[0].named_parameters()]
+    params = [
+        torch.stack([dict(mm.named_parameters())[n].detach() for mm in models]) for n in names
+    ]
+    exp_avg = [torch.zeros_like(p) for p in params]
+    exp_avg_sq = [torch.zeros_like(p) for p in params]
+    step = torch.zeros((), device=s.device)
+
+    def loss(ps, xs, xm, y):
+        pred, _, _ = functional_call(models[0], dict(zip(names, ps, strict=True)), (xs, xm))
+        return ((pred - y) ** 2).sum(-1).mean()
+
+    grads_of = vmap(grad(loss))
+
+    def epoch(s, m, e):
+        order = epoch_orders(len(s) - 1, seeds, e).to(s.device)  # (K, n)
+        for i in range(0, order.shape[1], BATCH):
+            idx = order[:, i : i + BATCH]  # (K, b)
+            grads = grads_of(params, s[idx], m[idx], s[idx + 1])  # each (K, ...)
+            step.add_(1)
+            adam_(params, grads, exp_avg, exp_avg_sq, [step] * len(params), 1e-3)
+
+    epoch(*warm, 99)
+    return timed(lambda i: epoch(s, m, i), repeats, s.device)
+
+
 def _rec_worker(kind, k, n, warm_n, keep, barrier, results, device="cpu", graphs=True):
     """One of the parallel processes, one thread: ``k`` = 0 the plain loop (nn.LSTM; on CUDA
     replayed as graphs unless ``graphs`` is False), else a stack of ``k`` seeds
     (``stacked_lstm``); timed from a start common to all processes."""
     torch.set_num_threads(1)
-    torch.set_flush_denormal(True)  # as training runs (train.flush_subnormals)
+    torch.set_flush_denormal(True)  # as training runs (fast.cpu.flush_subnormals)
     cuda_graphs.ENABLED = graphs
     if keep:
         keep_freed_memory()
@@ -145,7 +180,7 @@ def bench_rec(
     graphs: bool = True,
 ):
     """Total samples/s (wall, cpu) of ``workers`` spawned processes training at once, each a
-    stack of ``k`` seeds (0: the plain loop); ``keep``: with ``train.keep_freed_memory``, as
+    stack of ``k`` seeds (0: the plain loop); ``keep``: with ``fast.cpu.keep_freed_memory``, as
     training runs, else glibc's default allocator."""
     ctx = mp.get_context("spawn")
     best, best_cpu = 0.0, 0.0
@@ -191,8 +226,8 @@ def main() -> None:
     batches = args.batches or (300 if args.quick else 1500)
     repeats = args.repeats or (1 if args.quick else 3)
     torch.set_num_threads(1)
-    keep_freed_memory()  # as train.train and stacked.train_runs do
-    torch.set_flush_denormal(True)  # likewise (train.flush_subnormals)
+    keep_freed_memory()  # as train.train_runs does
+    torch.set_flush_denormal(True)  # likewise (fast.cpu.flush_subnormals)
     console = Console(width=150)
     where = torch.backends.cpu.get_cpu_capability()
     if device == "cuda":
@@ -250,6 +285,22 @@ def main() -> None:
             else:
                 target = f"{total / one:.2f}x K = 1"
             row(kind, f"stacked, K = {k}", per_seed, total, k * n / cpu, plain, target)
+            if k == 5:
+                ours = total
+        for k in (1, 5):  # the candidate derived from models.py, against the passes by hand
+            wall, cpu = bench_func(kind, k, s, m, warm, repeats)
+            total = k * n / wall
+            ref = one if k == 1 else ours
+            target = f"{total / ref:.2f}x stacked K = {k}"
+            row(
+                kind,
+                f"torch.func from models.py, K = {k}",
+                n / wall,
+                total,
+                k * n / cpu,
+                plain,
+                target,
+            )
         console.print(f"  {kind} done ({load()})")
 
     rec_n = max(batches, 200) * BATCH  # at least 10 chunks of 20 steps in every stream

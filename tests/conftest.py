@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 import torch
 
-from sensorimotor.data import generate, save_database
-from sensorimotor.world import load_world
+from sensorimotor.sim.database import generate, save_database
+from sensorimotor.sim.world import load_world
 
 
 def run_cli(*args: str | Path, cwd: Path | None = None, timeout: float = 600):

@@ -1,4 +1,4 @@
-"""A plain-Python reference simulator: the test oracle for ``sensorimotor.sim``.
+"""A plain-Python reference simulator: the test oracle for ``sensorimotor.sim.core``.
 
 No numpy vectorisation and no numba: loops over rays and segments and the ``math`` module,
 written to do the SAME floating-point operations in the same order as the numba kernels, so

@@ -12,13 +12,13 @@ from matplotlib.quiver import Quiver
 
 from conftest import assert_one_line_error
 from sensorimotor import analysis as an
-from sensorimotor import events as ev
+from sensorimotor.analysis.plots import plot_clusters, plot_pca, plot_transfer
 from sensorimotor.analysis.probes import KNN_K
-from sensorimotor.analysis_plots import plot_clusters, plot_pca, plot_transfer
-from sensorimotor.data import generate, load_database, save_database
 from sensorimotor.errors import InputError
-from sensorimotor.sim import SensorLayout, read_sensors
-from sensorimotor.world import load_world
+from sensorimotor.sim import events as ev
+from sensorimotor.sim.core import SensorLayout, read_sensors
+from sensorimotor.sim.database import generate, load_database, save_database
+from sensorimotor.sim.world import load_world
 
 
 @pytest.fixture(scope="module")

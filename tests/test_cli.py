@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from conftest import assert_one_line_error
-from sensorimotor.data import generate, load_database
-from sensorimotor.world import load_world
+from sensorimotor.sim.database import generate, load_database
+from sensorimotor.sim.world import load_world
 from test_world import BAD_WORLD_FILES
 
 # the world-file problems of DESIGN.md, each through the real command
@@ -87,7 +87,7 @@ def test_help(cli):
 
 
 def test_reproduce_help_states_what_each_scale_sets(cli):
-    from sensorimotor.reproduce import SCALES
+    from sensorimotor.report.reproduce import SCALES
 
     text = " ".join(cli("reproduce", "--help").stdout.split())  # unwrapped
     text = text.replace("│ ", "").replace(" │", "")

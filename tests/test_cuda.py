@@ -10,19 +10,16 @@ import warnings
 import pytest
 import torch
 
-from sensorimotor import cuda_graphs
-from sensorimotor.data import load_database
-from sensorimotor.evaluate import load_run, model_error, split_tensors
-from sensorimotor.models import build_model
-from sensorimotor.stacked import StackedEncoders, train_epoch_stacked, train_seeds
-from sensorimotor.train import (
-    FusedAdam,
-    TrainConfig,
-    epoch_generator,
-    resolve_device,
-    train_epoch_feedforward,
-    train_epoch_recurrent,
-)
+from sensorimotor.learn.adam import FusedAdam
+from sensorimotor.learn.batches import epoch_generator
+from sensorimotor.learn.engine import train_epoch_feedforward, train_epoch_recurrent
+from sensorimotor.learn.evaluate import load_run, model_error, split_tensors
+from sensorimotor.learn.fast import cuda_graphs
+from sensorimotor.learn.fast.stacked import StackedEncoders, train_epoch_stacked
+from sensorimotor.learn.models import build_model
+from sensorimotor.learn.runs import TrainConfig
+from sensorimotor.learn.train import resolve_device, train_seeds
+from sensorimotor.sim.database import load_database
 
 pytestmark = pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA device")
 

@@ -11,10 +11,11 @@ import zipfile
 import numpy as np
 import pytest
 
-from sensorimotor import __version__, sim
-from sensorimotor.data import (
+from sensorimotor.errors import InputError
+from sensorimotor.files import file_hash
+from sensorimotor.sim import core as sim
+from sensorimotor.sim.database import (
     Database,
-    file_hash,
     generate,
     load_database,
     save_database,
@@ -22,8 +23,8 @@ from sensorimotor.data import (
     scale_sensors,
     split_slice,
 )
-from sensorimotor.errors import InputError
-from sensorimotor.world import load_world, world_from_dict
+from sensorimotor.sim.world import load_world, world_from_dict
+from sensorimotor.version import __version__
 
 
 @pytest.fixture(scope="module")

@@ -10,11 +10,16 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-from sensorimotor import sim
 from sensorimotor.envs import LASER_WORLD_ID, LaserWorldEnv, paper_policy
 from sensorimotor.envs.laser_world import WALL_MARGIN
 from sensorimotor.errors import InputError
-from sensorimotor.world import BUILTIN_WORLDS, load_world, point_segment_distance, world_from_dict
+from sensorimotor.sim import core as sim
+from sensorimotor.sim.world import (
+    BUILTIN_WORLDS,
+    load_world,
+    point_segment_distance,
+    world_from_dict,
+)
 
 # check_env recommends actions in [-1, 1] for RL libraries; the env keeps the paper's units
 # (d in [0, 1], r in [-1.1 pi, 1.1 pi]) on purpose, as its docstring says. Only that is ignored.

@@ -11,11 +11,10 @@ import numpy as np
 import pytest
 import torch
 
-import sensorimotor.evaluate as ev
+import sensorimotor.learn.evaluate as ev
 from conftest import assert_one_line_error
-from sensorimotor.data import generate, load_database, save_database
 from sensorimotor.errors import InputError
-from sensorimotor.evaluate import (
+from sensorimotor.learn.evaluate import (
     baselines,
     evaluate_run,
     load_run,
@@ -24,10 +23,12 @@ from sensorimotor.evaluate import (
     run_model,
     split_tensors,
 )
-from sensorimotor.models import build_model
-from sensorimotor.sim import SensorLayout
-from sensorimotor.train import TrainConfig, train
-from sensorimotor.world import load_world, world_from_dict
+from sensorimotor.learn.models import build_model
+from sensorimotor.learn.runs import TrainConfig
+from sensorimotor.learn.train import train
+from sensorimotor.sim.core import SensorLayout
+from sensorimotor.sim.database import generate, load_database, save_database
+from sensorimotor.sim.world import load_world, world_from_dict
 
 
 def test_error_sums_over_sensors_and_averages_over_steps():
@@ -171,7 +172,7 @@ def test_table_refuses_seeds_of_one_row_trained_on_other_data(two_seeds, tmp_pat
 
 
 def test_paper_ordering_needs_rec_sm_below_sm_below_both_others():
-    from sensorimotor.tables import paper_ordering_holds
+    from sensorimotor.analysis.tables import paper_ordering_holds
 
     assert paper_ordering_holds({"rec-sm": 1, "sm": 2, "rec-s": 3, "s": 4}) is True
     assert paper_ordering_holds({"rec-sm": 1, "sm": 2, "rec-s": 4, "s": 3}) is True
@@ -190,7 +191,7 @@ def fake_results(trained_on: str, errors: dict[str, list[float]]) -> list[dict]:
 
 
 def test_table_keeps_training_worlds_apart_and_orders_by_the_means():
-    from sensorimotor.tables import fmt_cell, table_from_results
+    from sensorimotor.analysis.tables import fmt_cell, table_from_results
 
     # spread chosen so that the sds are in the opposite order of the means
     square = {"rec-sm": [1.0, 1.2], "sm": [2.0, 2.0], "rec-s": [3.0, 3.0], "s": [4.0, 4.0]}

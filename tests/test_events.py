@@ -8,10 +8,10 @@ import time
 import numpy as np
 import pytest
 
-from sensorimotor import events as ev
-from sensorimotor import sim
-from sensorimotor.sim import SENSOR_ANGLES, SensorLayout
-from sensorimotor.world import load_world, world_from_dict
+from sensorimotor.sim import core as sim
+from sensorimotor.sim import events as ev
+from sensorimotor.sim.core import SENSOR_ANGLES, SensorLayout
+from sensorimotor.sim.world import load_world, world_from_dict
 
 
 def make_world(walls, size=20):

@@ -4,7 +4,7 @@ import pytest
 import torch
 from torch import nn
 
-from sensorimotor.models import MODEL_KINDS, ModelConfig, build_model, count_parameters
+from sensorimotor.learn.models import MODEL_KINDS, ModelConfig, build_model, count_parameters
 
 
 def linear(i: int, o: int) -> int:

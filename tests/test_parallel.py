@@ -7,7 +7,7 @@ import operator
 
 import pytest
 
-from sensorimotor.parallel import Job, run_jobs
+from sensorimotor.report.workers import Job, run_jobs
 
 
 @pytest.mark.parametrize("workers", [1, 2])
@@ -23,7 +23,7 @@ def test_results_by_name_and_failures_kept_apart(workers):
 
 
 def test_in_process_progress_reaches_the_printer():
-    from sensorimotor.parallel import report
+    from sensorimotor.report.workers import report
 
     lines = []
 

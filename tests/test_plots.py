@@ -11,10 +11,17 @@ from matplotlib.colors import to_rgba
 from matplotlib.figure import Figure
 
 from conftest import assert_one_line_error
-from sensorimotor import events, plots, sim
-from sensorimotor.data import generate, load_database
 from sensorimotor.errors import InputError
-from sensorimotor.world import BUILTIN_WORLDS, load_world, point_segment_distance, world_from_dict
+from sensorimotor.report import figures
+from sensorimotor.sim import core as sim
+from sensorimotor.sim import events, plots
+from sensorimotor.sim.database import generate, load_database
+from sensorimotor.sim.world import (
+    BUILTIN_WORLDS,
+    load_world,
+    point_segment_distance,
+    world_from_dict,
+)
 
 RED = to_rgba("red")
 
@@ -121,13 +128,13 @@ def test_hit_walls_names_the_wall_each_ray_hits():
 def test_pick_situations_finds_the_papers_five_in_a_rooms1_database(rooms1_db):
     db = rooms1_db
     world = db.world
-    found = plots.pick_situations(db)
-    assert list(found) == list(plots.SITUATIONS)
+    found = figures.pick_situations(db)
+    assert list(found) == list(figures.SITUATIONS)
     rows = np.array(list(found.values()))
     poses = db.poses[rows].astype(np.float64)
     true = sim.read_sensors(world, poses)
     by_name = dict(zip(found, range(len(rows)), strict=True))
-    nothing, line, corner, left, end = (by_name[name] for name in plots.SITUATIONS)
+    nothing, line, corner, left, end = (by_name[name] for name in figures.SITUATIONS)
     np.testing.assert_allclose(db.sensors[found["nothing"]], 10.0)
     walls = sim.hit_walls(world, poses)
     assert len(set(walls[line])) == 1
@@ -140,15 +147,15 @@ def test_pick_situations_finds_the_papers_five_in_a_rooms1_database(rooms1_db):
 
 
 def test_a_world_without_inner_walls_has_no_wall_end(square_db_path):
-    found = plots.pick_situations(load_database(square_db_path))
+    found = figures.pick_situations(load_database(square_db_path))
     assert "wall end" not in found
     assert {"nothing", "line", "corner", "wall at its left"} <= set(found)
 
 
 def test_perception_figure_has_one_panel_per_situation(rooms1_db):
-    fig = plots.perception_figure(rooms1_db)
+    fig = figures.perception_figure(rooms1_db)
     assert len(fig.axes) == 5
-    for ax, caption in zip(fig.axes, plots.SITUATIONS.values(), strict=True):
+    for ax, caption in zip(fig.axes, figures.SITUATIONS.values(), strict=True):
         assert caption in ax.get_title()
         assert len(percept(ax).get_offsets()) == 5
 
@@ -156,7 +163,7 @@ def test_perception_figure_has_one_panel_per_situation(rooms1_db):
 def test_perception_figure_draws_a_databases_own_sensor_layout():
     layout = sim.SensorLayout(angles=(-1.2, -0.6, 0.0, 0.6, 1.2), max_range=6.0)
     db = generate(load_world("rooms1"), 20_000, seed=1, layout=layout)
-    fig = plots.perception_figure(db)
+    fig = figures.perception_figure(db)
     assert len(fig.axes) >= 4
     for ax in fig.axes:
         dots = percept(ax)
@@ -184,7 +191,7 @@ def test_panels_take_the_shape_of_their_world():
     width, height = plots.plot_world(tower).figure.get_size_inches()
     assert height == 3.2
     assert width < 2.3
-    width, height = plots.worlds_figure([hall, hall]).get_size_inches()
+    width, height = figures.worlds_figure([hall, hall]).get_size_inches()
     assert width > 3 * height  # two flat panels side by side, not two squares
 
 
@@ -192,7 +199,7 @@ def test_panels_take_the_shape_of_their_world():
 
 
 def test_save_figure_writes_png_and_svg_atomically(tmp_path):
-    fig = plots.worlds_figure([load_world("square")])
+    fig = figures.worlds_figure([load_world("square")])
     written = plots.save_figure(fig, tmp_path / "w.png", svg=True)
     assert written == [tmp_path / "w.png", tmp_path / "w.svg"]
     assert matplotlib.image.imread(tmp_path / "w.png").ndim == 3
@@ -201,7 +208,7 @@ def test_save_figure_writes_png_and_svg_atomically(tmp_path):
 
 
 def test_save_figure_into_a_missing_folder_is_an_input_error(tmp_path):
-    fig = plots.worlds_figure([load_world("square")])
+    fig = figures.worlds_figure([load_world("square")])
     with pytest.raises(InputError, match="does not exist"):
         plots.save_figure(fig, tmp_path / "nowhere" / "w.png")
 

@@ -9,11 +9,11 @@ from types import SimpleNamespace
 import pytest
 
 from sensorimotor.analysis import analyze_representation
+from sensorimotor.analysis.claims import _verdict, cluster_f1, paper_claims
 from sensorimotor.analysis.clusters import cluster_event_table
-from sensorimotor.claims import _verdict, cluster_f1, paper_claims
-from sensorimotor.data import generate
-from sensorimotor.report import h, image, p, paper_agreement, table, to_html, to_markdown
-from sensorimotor.world import load_world
+from sensorimotor.report.document import h, image, p, paper_agreement, table, to_html, to_markdown
+from sensorimotor.sim.database import generate
+from sensorimotor.sim.world import load_world
 
 
 @pytest.fixture(scope="module")

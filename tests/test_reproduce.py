@@ -91,6 +91,19 @@ def test_smoke_report_has_every_stage_and_a_full_table(smoke):
 
 
 @pytest.mark.slow  # the whole pipeline, end to end
+def test_square_alone_trains_only_square_and_gives_the_same_table_one(smoke, tmp_path):
+    """`--worlds square`: the paper's own Table I (trained on Square, tested on all three
+    worlds) without training on the other two, the same numbers as the full reproduction."""
+    out = tmp_path / "square"
+    proc = _reproduce(out, "--worlds", "square")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert {p.name.split("__")[0] for p in (out / "runs").iterdir()} == {"square"}
+    assert sorted(p.stem for p in (out / "data").glob("*.npz")) == ["rooms1", "rooms2", "square"]
+    assert _table_numbers(out) == {"square": _table_numbers(smoke)["square"]}
+    assert "Table I ordering (trained on Square)" in (out / "report.md").read_text()
+
+
+@pytest.mark.slow  # the whole pipeline, end to end
 def test_rerun_uses_the_cache_and_a_deleted_stage_is_redone_alone(smoke):
     before = _table_numbers(smoke)
     stamp = {p: p.stat().st_mtime_ns for p in (smoke / "runs").rglob("model.pt")}
@@ -168,6 +181,8 @@ def _group_alive(pgid: int) -> bool:
         (["--seeds", "0"], "--seeds"),
         (["--workers", "0"], "--workers"),
         (["--device", "tpu"], "unknown device"),
+        (["--worlds", "square,maze"], "--worlds: use any of square, rooms1, rooms2"),
+        (["--worlds", ","], "--worlds"),
     ],
 )
 def test_bad_options_are_refused(args, needle, tmp_path, cli):
@@ -208,10 +223,11 @@ def test_a_failing_worker_names_its_run_and_finished_runs_are_kept(smoke, tmp_pa
 
 @pytest.mark.slow  # the whole pipeline, end to end
 def test_a_bad_database_in_a_stack_across_worlds_fails_only_its_runs(tmp_path):
-    from sensorimotor.data import file_hash, generate, save_database
     from sensorimotor.errors import InputError
-    from sensorimotor.reproduce import _train_stack_job
-    from sensorimotor.world import load_world
+    from sensorimotor.files import file_hash
+    from sensorimotor.report.reproduce import _train_job
+    from sensorimotor.sim.database import generate, save_database
+    from sensorimotor.sim.world import load_world
 
     good, bad = tmp_path / "square.npz", tmp_path / "rooms2.npz"
     save_database(generate(load_world("square"), 3000, seed=0), good)
@@ -224,7 +240,7 @@ def test_a_bad_database_in_a_stack_across_worlds_fails_only_its_runs(tmp_path):
     ]
     config = {"model": "s", "device": "cpu", "max_epochs": 1, "patience": 10}
     with pytest.raises(InputError, match=r"^rooms2__s__s0 \(and 1 more runs\): .*rooms2\.npz"):
-        _train_stack_job(runs, config)
+        _train_job(runs, config)
     assert (tmp_path / "square__s__s0" / "model.pt").exists()  # trained, kept for the retry
     assert not (tmp_path / "rooms2__s__s0").exists()
 
@@ -233,7 +249,7 @@ def test_a_bad_database_in_a_stack_across_worlds_fails_only_its_runs(tmp_path):
 
 
 def test_a_database_is_keyed_by_its_size_and_a_run_by_its_scales_patience():
-    from sensorimotor.reproduce import SCALES, _data_key, _train_config
+    from sensorimotor.report.reproduce import SCALES, _data_key, _train_config
 
     keys = {_data_key(w, sc) for w in ("square", "rooms1") for sc in SCALES.values()}
     assert len(keys) == 2 * len(SCALES)
@@ -244,9 +260,10 @@ def test_a_database_is_keyed_by_its_size_and_a_run_by_its_scales_patience():
 def test_a_kept_run_is_retrained_when_its_data_settings_or_model_sizes_change(
     square_db_path, tmp_path
 ):
-    from sensorimotor.data import file_hash
-    from sensorimotor.reproduce import run_matches
-    from sensorimotor.train import TrainConfig, train
+    from sensorimotor.files import file_hash
+    from sensorimotor.learn.runs import TrainConfig
+    from sensorimotor.learn.train import train
+    from sensorimotor.report.reproduce import run_matches
 
     config = {"model": "s", "max_epochs": 1}
     run = train(square_db_path, tmp_path / "run", TrainConfig(**config)).run_dir
@@ -262,7 +279,7 @@ def test_a_kept_run_is_retrained_when_its_data_settings_or_model_sizes_change(
 
 def test_a_kept_analysis_is_redone_when_the_metrics_change(tmp_path, monkeypatch):
     import sensorimotor.analysis as analysis
-    from sensorimotor.reproduce import _analysis_job_of
+    from sensorimotor.report.reproduce import _analysis_job_of
 
     dest = tmp_path / "raw__square"
     target = ("raw__square", "raw", "db.npz", None, str(dest))
@@ -277,7 +294,7 @@ def test_a_kept_analysis_is_redone_when_the_metrics_change(tmp_path, monkeypatch
 
 
 def test_a_kept_evaluation_is_redone_when_its_model_or_data_change(tmp_path):
-    import sensorimotor.reproduce as rp
+    import sensorimotor.report.reproduce as rp
 
     rep = rp.Reproduction(tmp_path, rp.SCALES["smoke"], 1, "cpu", 1)
     rep.data = {w: tmp_path / f"{w}.npz" for w in rp.WORLDS}
@@ -295,7 +312,7 @@ def test_a_kept_evaluation_is_redone_when_its_model_or_data_change(tmp_path):
 
 
 def test_a_transfer_fits_on_the_training_world_and_applies_to_another(tmp_path):
-    import sensorimotor.reproduce as rp
+    import sensorimotor.report.reproduce as rp
 
     rep = rp.Reproduction(tmp_path, rp.SCALES["smoke"], 1, "cpu", 1)
     rep.data = {w: tmp_path / f"{w}.npz" for w in rp.WORLDS}
@@ -309,8 +326,8 @@ def test_a_transfer_fits_on_the_training_world_and_applies_to_another(tmp_path):
 
 def test_a_crash_in_a_job_is_not_reported_as_bad_input():
     from sensorimotor.errors import InputError
-    from sensorimotor.parallel import JobFailure
-    from sensorimotor.reproduce import _raise_failures
+    from sensorimotor.report.reproduce import _raise_failures
+    from sensorimotor.report.workers import JobFailure
 
     with pytest.raises(RuntimeError, match="run square__s__s0 failed") as info:
         _raise_failures([JobFailure("square__s__s0", ZeroDivisionError("x"))], print)
@@ -324,7 +341,7 @@ def _section(md: str, world: str) -> str:
 
 @pytest.mark.slow  # the whole pipeline, end to end
 def test_the_reports_numbers_are_the_tables_and_the_transfers(smoke):
-    from sensorimotor.claims import cluster_f1
+    from sensorimotor.analysis.claims import cluster_f1
 
     md = (smoke / "report.md").read_text()
     t = json.loads((smoke / "table1.json").read_text())

@@ -10,9 +10,14 @@ import numpy as np
 import pytest
 
 import reference_sim as ref
-from sensorimotor import sim
-from sensorimotor.data import generate, load_database, save_database
-from sensorimotor.world import BUILTIN_WORLDS, load_world, point_segment_distance, world_from_dict
+from sensorimotor.sim import core as sim
+from sensorimotor.sim.database import generate, load_database, save_database
+from sensorimotor.sim.world import (
+    BUILTIN_WORLDS,
+    load_world,
+    point_segment_distance,
+    world_from_dict,
+)
 
 ANGLES = sim.SENSOR_ANGLES
 # A world with oblique walls (none parallel to an axis, none crossing another).

@@ -8,15 +8,19 @@ import numpy as np
 import pytest
 import torch
 
-from sensorimotor.models import build_model
-from sensorimotor.stacked import StackedEncoders, run_name, train_seeds
-from sensorimotor.stacked_lstm import (
+from sensorimotor.learn.adam import FusedAdam
+from sensorimotor.learn.engine import train_epoch_recurrent
+from sensorimotor.learn.evaluate import model_error
+from sensorimotor.learn.fast.stacked import StackedEncoders
+from sensorimotor.learn.fast.stacked_lstm import (
     forward_backward,
     sequence_errors,
     tanh_array,
     train_epoch_stacked_recurrent,
 )
-from sensorimotor.train import FusedAdam, TrainConfig, model_error, train, train_epoch_recurrent
+from sensorimotor.learn.models import build_model
+from sensorimotor.learn.runs import TrainConfig, run_name
+from sensorimotor.learn.train import train, train_seeds
 
 pytestmark = pytest.mark.usefixtures("one_thread")
 

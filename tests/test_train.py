@@ -17,21 +17,18 @@ import numpy as np
 import pytest
 import torch
 
-import sensorimotor.train as train_mod
+import sensorimotor.learn.train as train_mod
 from conftest import assert_one_line_error
-from sensorimotor.data import generate, load_database, save_database
 from sensorimotor.errors import InputError
-from sensorimotor.evaluate import baselines, load_run, model_error, split_tensors
-from sensorimotor.models import build_model
-from sensorimotor.train import (
-    EarlyStopping,
-    FusedAdam,
-    TrainConfig,
-    stream_layout,
-    train,
-    train_epoch_recurrent,
-)
-from sensorimotor.world import load_world
+from sensorimotor.learn.adam import FusedAdam
+from sensorimotor.learn.batches import stream_layout
+from sensorimotor.learn.engine import train_epoch_recurrent
+from sensorimotor.learn.evaluate import baselines, load_run, model_error, split_tensors
+from sensorimotor.learn.models import build_model
+from sensorimotor.learn.runs import EarlyStopping, TrainConfig
+from sensorimotor.learn.train import train
+from sensorimotor.sim.database import generate, load_database, save_database
+from sensorimotor.sim.world import load_world
 
 # --- the stream layout of truncated back-propagation through time -------------------------
 
@@ -118,7 +115,8 @@ def test_train_stops_at_the_scripted_epoch_and_keeps_the_best_weights(tmp_path, 
         snapshots.append({k: v.clone() for k, v in model.state_dict().items()})
         return SCRIPT[len(snapshots) - 1]
 
-    monkeypatch.setattr(train_mod, "model_error", scripted)
+    for engine in ("engine", "fast.stacked_engine"):  # the validation of either engine
+        monkeypatch.setattr(f"sensorimotor.learn.{engine}.model_error", scripted)
     config = TrainConfig(model="s", seed=0, batch_size=64)
     result = train(db, tmp_path / "run", config)
     assert (result.epochs, result.best_epoch, result.stopped) == (13, 7, "early stopping")
@@ -419,15 +417,17 @@ def test_weights_of_another_model_or_not_finite_are_refused(square_db_path, tmp_
 
 _ONE_EPOCH = """
 import hashlib, sys, torch
-import sensorimotor.train as tr
-from sensorimotor.models import build_model
+from sensorimotor.learn.adam import FusedAdam
+from sensorimotor.learn.engine import train_epoch_recurrent
+from sensorimotor.learn.fast.cpu import keep_freed_memory
+from sensorimotor.learn.models import build_model
 torch.set_num_threads(1)
 if sys.argv[1] == "keep":
-    assert tr.keep_freed_memory() is True
+    assert keep_freed_memory() is True
 g = torch.Generator().manual_seed(0)
 s, m = torch.rand(2 * 64 * 20 + 1, 5, generator=g), torch.rand(2 * 64 * 20 + 1, 2, generator=g)
 model = build_model("rec-sm", seed=3)
-err = tr.train_epoch_recurrent(model, tr.FusedAdam(model.parameters()), s, m, 64, 20)
+err = train_epoch_recurrent(model, FusedAdam(model.parameters()), s, m, 64, 20)
 weights = b"".join(p.detach().numpy().tobytes() for p in model.parameters())
 print(err, hashlib.sha256(weights).hexdigest())
 """
@@ -469,18 +469,14 @@ def _subnormal_survives() -> bool:
 def test_training_flushes_subnormals_and_restores_the_mode(
     path, square_db_path, tmp_path, monkeypatch
 ):
-    import sensorimotor.stacked as stacked_mod
-
     during = []
 
     def record(*_):
         during.append(_subnormal_survives())
 
     config = TrainConfig(model="s", max_epochs=1)
-    if path == "stack":
-        stacked_mod.train_runs(square_db_path, [(0, tmp_path / "run")], config, on_epoch=record)
-    else:
-        monkeypatch.setattr(stacked_mod, "computes_models_py", lambda model: False)
-        train(square_db_path, tmp_path / "run", config, on_epoch=record)
+    if path == "autograd loop":
+        monkeypatch.setattr(train_mod, "computes_models_py", lambda model: False)
+    train(square_db_path, tmp_path / "run", config, on_epoch=record)
     assert during == [False]  # flushed while training
     assert _subnormal_survives()  # and as before once it returns

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from sensorimotor.errors import InputError
-from sensorimotor.world import (
+from sensorimotor.sim.world import (
     BUILTIN_WORLDS,
     free_start_cells,
     load_world,

@@ -1,9 +1,62 @@
-"""Representation learning by sensorimotor prediction (Kulak & Garcia Ortiz), reproduced."""
+"""Representation learning by sensorimotor prediction (Kulak & Garcia Ortiz), reproduced.
 
-__version__ = "0.1.0"
+The package is a pipeline of four layers, each importing only those before it::
+
+    sim       worlds, the simulated robot, databases, events      (numpy, numba)
+    learn     the four encoders, training, run folders, evaluation (torch)
+    analysis  representations, clusters, probes, claims, Table I
+    report    the paper's figures, ``reproduce``, the report, worker processes
+
+with ``envs`` (the Gymnasium environment, on ``sim``) and ``cli`` at the edges. What a
+notebook needs is importable from here; each name loads its layer on first use, so
+``import sensorimotor`` stays light:
+
+>>> import sensorimotor
+>>> world = sensorimotor.load_world("square")
+>>> db = sensorimotor.generate(world, steps=1_000, seed=0)
+>>> db.sensors.shape, db.motors.shape, db.poses.shape
+((1000, 5), (1000, 2), (1000, 3))
+"""
+
+from __future__ import annotations
+
+import importlib
 
 from sensorimotor.errors import InputError
+from sensorimotor.version import __version__
 
-MAX_SEED = 2**32 - 1  # the largest seed that every seeded library here accepts
+# public name -> the module that defines it
+_API = {
+    "World": "sensorimotor.sim.world",
+    "load_world": "sensorimotor.sim.world",
+    "Database": "sensorimotor.sim.database",
+    "generate": "sensorimotor.sim.database",
+    "load_database": "sensorimotor.sim.database",
+    "save_database": "sensorimotor.sim.database",
+    "corner_in_view": "sensorimotor.sim.events",
+    "ModelConfig": "sensorimotor.learn.models",
+    "build_model": "sensorimotor.learn.models",
+    "TrainConfig": "sensorimotor.learn.runs",
+    "train": "sensorimotor.learn.train",
+    "train_seeds": "sensorimotor.learn.train",
+    "load_run": "sensorimotor.learn.evaluate",
+    "evaluate_run": "sensorimotor.learn.evaluate",
+    "representation": "sensorimotor.learn.evaluate",
+    "analyze_files": "sensorimotor.analysis.analyze",
+    "reproduce": "sensorimotor.report.reproduce",
+}
 
-__all__ = ["MAX_SEED", "InputError", "__version__"]
+__all__ = ["InputError", "__version__", *_API]
+
+
+def __getattr__(name: str):
+    """Load a public name's layer on first use (PEP 562)."""
+    if name not in _API:
+        raise AttributeError(f"module 'sensorimotor' has no attribute {name!r}")
+    value = getattr(importlib.import_module(_API[name]), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

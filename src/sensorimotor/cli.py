@@ -11,8 +11,9 @@ import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-from sensorimotor import MAX_SEED, __version__
 from sensorimotor.errors import InputError
+from sensorimotor.sim.core import MAX_SEED
+from sensorimotor.version import __version__
 
 app = typer.Typer(
     name="sensorimotor",
@@ -54,9 +55,10 @@ def generate(
     noise: Annotated[float, typer.Option(help="Std of Gaussian noise added to readings.")] = 0.0,
 ) -> None:
     """Record a database of the paper's random wall-avoiding behaviour in WORLD."""
-    from sensorimotor.data import check_memory, check_writable, save_database
-    from sensorimotor.data import generate as generate_db
-    from sensorimotor.world import load_world
+    from sensorimotor.files import check_writable
+    from sensorimotor.sim.database import check_memory, save_database
+    from sensorimotor.sim.database import generate as generate_db
+    from sensorimotor.sim.world import load_world
 
     if steps < 1:
         raise InputError(f"--steps must be at least 1, got {steps}")
@@ -89,7 +91,7 @@ ModelArg = Annotated[str, typer.Argument(help="Model: s, sm, rec-s or rec-sm.")]
 
 
 def _check_model(model: str) -> str:
-    from sensorimotor.models import MODEL_KINDS
+    from sensorimotor.learn.models import MODEL_KINDS
 
     if model not in MODEL_KINDS:
         raise InputError(f"unknown model {model!r}: use one of {', '.join(MODEL_KINDS)}")
@@ -124,9 +126,7 @@ def train(
     ] = None,
 ) -> None:
     """Train one encoder by predicting the next reading (Adam, batch 64, early stopping)."""
-    from sensorimotor.models import MODEL_NAMES
-    from sensorimotor.train import TrainConfig
-    from sensorimotor.train import train as train_run
+    from sensorimotor.learn.runs import TrainConfig
 
     _check_model(model)
     seed_list = None if seeds is None else _parse_seeds(seeds)
@@ -140,38 +140,16 @@ def train(
         model=model, seed=seed, max_epochs=max_epochs, max_minutes=max_minutes, device=device
     )
 
-    def on_epoch(r, stopper) -> None:
-        left = ""
-        if max_minutes is not None:
-            left = f"  {max(0.0, 60 * max_minutes - r.elapsed) / 60:.1f} min left under the cap"
-        if not started:  # the header waits for the first epoch: input errors stay one line
-            started.append(True)
-            err_console.print(
-                f"training {MODEL_NAMES[model]} on {data} (seed {seed}{_autograd_note(model)}) "
-                f"-> {out}"
-            )
-        mark = "*" if r.improved else " "
-        err_console.print(
-            f"epoch {r.epoch:3d}{mark} train {r.train_error:.5f}  val {r.val_error:.5f}  "
-            f"best {stopper.lowest:.5f} (epoch {stopper.best_epoch})  "
-            f"{r.samples_per_s / 1e3:,.0f} k samples/s  {r.seconds:.1f} s  "
-            f"patience {stopper.patience - stopper.waited}{left}"
-        )
-
-    started: list[bool] = []
-    if seed_list is not None:
-        _train_seeds(model, data, out, config, seed_list, resume)
-        return
-    result = train_run(data, out, config, resume=resume, on_epoch=on_epoch)
-    err_console.print(
-        f"done: {result.ending}, best validation error "
-        f"{result.best_val_error:.6f} at epoch {result.best_epoch} ({result.seconds:.0f} s)"
-    )
+    if seed_list is None:
+        seed_list, out_note = [seed], f"seed {seed}"
+    else:
+        out_note = f"seeds {','.join(map(str, seed_list))}"
+    _train(model, data, out, config, seed_list, out_note, resume, single=seeds is None)
 
 
 def _parse_seeds(text: str) -> list[int]:
     """``--seeds 0,1,2``: integers separated by commas, at least one, none twice."""
-    from sensorimotor.stacked import check_seeds
+    from sensorimotor.learn.train import check_seeds
 
     if not text.strip():
         raise InputError("--seeds: give at least one seed, e.g. 0,1,2,3,4")
@@ -190,42 +168,62 @@ def _parse_seeds(text: str) -> list[int]:
 
 def _autograd_note(model: str) -> str:
     """What the training header adds when the model trains with autograd (an edited models.py)."""
-    from sensorimotor.stacked import computes_models_py
+    from sensorimotor.learn.fast.stacked_engine import computes_models_py
 
     if computes_models_py(model):
         return ""
-    return f", with autograd: models.py's {model} is not what stacked.py computes"
+    return f", with autograd: models.py's {model} is not what the stacked passes compute"
 
 
-def _train_seeds(model: str, data: Path, out: Path, config, seeds: list[int], resume: bool) -> None:
-    """`train --seeds`: one run folder per seed under OUT, a line per seed and epoch."""
-    from sensorimotor.models import MODEL_NAMES
-    from sensorimotor.stacked import train_seeds, trains_stacked
+def epoch_line(r, stopper, seed: int | None = None, max_minutes: float | None = None) -> str:
+    """One epoch of one run, as `train` and `reproduce` print it."""
+    mark = "*" if r.improved else " "
+    left = ""
+    if max_minutes is not None:
+        left = f"  {max(0.0, 60 * max_minutes - r.elapsed) / 60:.1f} min left under the cap"
+    return (
+        f"{'' if seed is None else f's{seed} '}epoch {r.epoch:3d}{mark} "
+        f"train {r.train_error:.5f}  val {r.val_error:.5f}  "
+        f"best {stopper.lowest:.5f} (epoch {stopper.best_epoch})  "
+        f"{r.samples_per_s / 1e3:,.0f} k samples/s  {r.seconds:.1f} s  "
+        f"patience {stopper.patience - stopper.waited}{left}"
+    )
+
+
+def _train(model, data: Path, out: Path, config, seeds: list[int], note: str, resume, single):
+    """`train`: one run folder (OUT itself with --seed; one per seed under OUT with --seeds),
+    a line per seed and epoch, a line per finished run."""
+    from sensorimotor.learn.models import MODEL_NAMES
+    from sensorimotor.learn.train import train, train_seeds, trains_stacked
 
     started: list[bool] = []
 
     def on_epoch(seed, r, stopper) -> None:
         if not started:  # the header waits for the first epoch: input errors stay one line
             started.append(True)
-            how = "stacked" if trains_stacked(model, config.device) else "one after another"
-            how += _autograd_note(model)
-            err_console.print(
-                f"training {MODEL_NAMES[model]} on {data}, seeds {','.join(map(str, seeds))} "
-                f"({how}) -> {out}"
+            how = (
+                ""
+                if single
+                else ", "
+                + ("stacked" if trains_stacked(model, config.device) else "one after another")
             )
-        mark = "*" if r.improved else " "
-        err_console.print(
-            f"s{seed} epoch {r.epoch:3d}{mark} train {r.train_error:.5f}  val {r.val_error:.5f}  "
-            f"best {stopper.lowest:.5f} (epoch {stopper.best_epoch})  "
-            f"{r.samples_per_s / 1e3:,.0f} k samples/s  {r.seconds:.1f} s  "
-            f"patience {stopper.patience - stopper.waited}"
-        )
+            err_console.print(
+                f"training {MODEL_NAMES[model]} on {data} ({note}{how}{_autograd_note(model)}) "
+                f"-> {out}"
+            )
+        err_console.print(epoch_line(r, stopper, None if single else seed, config.max_minutes))
 
-    results = train_seeds(data, out, config, seeds, resume=resume, on_epoch=on_epoch)
+    if single:
+        one = train(data, out, config, resume, lambda r, st: on_epoch(seeds[0], r, st))
+        results = [one]
+    else:
+        results = train_seeds(data, out, config, seeds, resume=resume, on_epoch=on_epoch)
     for seed, result in zip(seeds, results, strict=True):
+        where = "" if single else f" -> {result.run_dir}"
         err_console.print(
-            f"done s{seed}: {result.ending}, best validation error "
-            f"{result.best_val_error:.6f} at epoch {result.best_epoch} -> {result.run_dir}"
+            f"done{'' if single else f' s{seed}'}: {result.ending}, best validation error "
+            f"{result.best_val_error:.6f} at epoch {result.best_epoch}"
+            f"{f' ({result.seconds:.0f} s)' if single else where}"
         )
 
 
@@ -242,9 +240,10 @@ def evaluate(
 
     from rich.table import Table
 
-    from sensorimotor.data import check_writable, load_database, write_text_atomic
-    from sensorimotor.evaluate import evaluate_run, load_run
-    from sensorimotor.models import MODEL_NAMES
+    from sensorimotor.files import check_writable, write_text_atomic
+    from sensorimotor.learn.evaluate import evaluate_run, load_run
+    from sensorimotor.learn.models import MODEL_NAMES
+    from sensorimotor.sim.database import load_database
 
     if json_out is not None:
         check_writable(json_out)
@@ -277,9 +276,10 @@ def table(
 
     from rich.table import Table
 
-    from sensorimotor.data import check_writable, load_database, write_text_atomic
-    from sensorimotor.evaluate import load_run
-    from sensorimotor.tables import PAPER_TABLE_I, build_table, fmt_cell
+    from sensorimotor.analysis.tables import PAPER_TABLE_I, build_table, fmt_cell
+    from sensorimotor.files import check_writable, write_text_atomic
+    from sensorimotor.learn.evaluate import load_run
+    from sensorimotor.sim.database import load_database
 
     if json_out is not None:
         check_writable(json_out)
@@ -322,14 +322,14 @@ def table(
 
 
 def _save_plot(fig, out: Path, svg: bool) -> None:
-    from sensorimotor.plots import save_figure
+    from sensorimotor.sim.plots import save_figure
 
     for path in save_figure(fig, out, svg=svg):
         err_console.print(f"wrote {path}")
 
 
 def _check_png(out: Path) -> Path:
-    from sensorimotor.data import check_writable
+    from sensorimotor.files import check_writable
 
     if out.suffix.lower() != ".png":
         raise InputError(f"{out}: --out must be a .png file")
@@ -346,8 +346,8 @@ def plot_world_cmd(
     svg: PlotSvg = False,
 ) -> None:
     """Fig. 1: the walls of each WORLD, side by side."""
-    from sensorimotor.plots import worlds_figure
-    from sensorimotor.world import load_world
+    from sensorimotor.report.figures import worlds_figure
+    from sensorimotor.sim.world import load_world
 
     _check_png(out)
     _save_plot(worlds_figure([load_world(w) for w in worlds]), out, svg)
@@ -363,8 +363,8 @@ def plot_trajectory_cmd(
     svg: PlotSvg = False,
 ) -> None:
     """Fig. 2: the agent's path over the first STEPS rows of each database, in its world."""
-    from sensorimotor.data import load_database
-    from sensorimotor.plots import trajectories_figure
+    from sensorimotor.report.figures import trajectories_figure
+    from sensorimotor.sim.database import load_database
 
     if steps < 1:
         raise InputError(f"--steps must be at least 1, got {steps}")
@@ -390,8 +390,8 @@ def plot_perception_cmd(
     The situations (nothing, line, corner, wall at its left, wall end) are found in the
     database by pose and readings; a wall end needs a world with inner walls (rooms1).
     """
-    from sensorimotor.data import load_database
-    from sensorimotor.plots import perception_figure, pick_situations
+    from sensorimotor.report.figures import perception_figure, pick_situations
+    from sensorimotor.sim.database import load_database
 
     if not (view >= 0 and math.isfinite(view)):
         raise InputError(f"--view must be a non-negative number, got {view}")
@@ -479,10 +479,17 @@ def reproduce(
     workers: Annotated[
         int | None, typer.Option(help="Parallel worker processes (default: the number of cores).")
     ] = None,
+    worlds: Annotated[
+        str,
+        typer.Option(
+            help="Worlds to train and analyse in, comma-separated: any of square, rooms1, rooms2 "
+            "(the paper's Table I: square). Every model is tested on all three."
+        ),
+    ] = "square,rooms1,rooms2",
 ) -> None:
     """Reproduce the paper: databases, the four models on the three worlds, Table I, the analysis, a report."""
-    from sensorimotor.parallel import default_workers
-    from sensorimotor.reproduce import reproduce as reproduce_all
+    from sensorimotor.report.reproduce import reproduce as reproduce_all
+    from sensorimotor.report.workers import default_workers
 
     rep = reproduce_all(
         out,
@@ -492,14 +499,15 @@ def reproduce(
         workers if workers is not None else default_workers(),
         log=err_console.print,
         argv=sys.argv,
+        worlds=[w.strip() for w in worlds.split(",") if w.strip()],
     )
-    t = rep.table
-    holds = t["paper_ordering_holds"].get("square", {})
-    err_console.print(
-        f"done in {rep.timings['total']['seconds']:.0f} s: {rep.out / 'report.html'} and "
-        f"{rep.out / 'report.md'}; paper ordering on Square-trained models: "
-        + ", ".join(f"{w} {'holds' if v else 'fails'}" for w, v in holds.items() if v is not None)
-    )
+    done = f"done in {rep.timings['total']['seconds']:.0f} s: {rep.out / 'report.html'} and {rep.out / 'report.md'}"
+    holds = rep.table["paper_ordering_holds"].get("square")
+    if holds:
+        done += "; paper ordering on Square-trained models: " + ", ".join(
+            f"{w} {'holds' if v else 'fails'}" for w, v in holds.items() if v is not None
+        )
+    err_console.print(done)
 
 
 def version_callback(value: bool) -> None:

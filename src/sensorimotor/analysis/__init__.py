@@ -18,6 +18,7 @@ space" baseline). Nothing here knows about models.
 Probes are fitted on a random half of the steps (fixed seed) and scored on the other half.
 """
 
+from sensorimotor.analysis.analyze import RAW, analyze_files, representation_of, summary_lines
 from sensorimotor.analysis.clusters import (
     KMEANS_N_INIT,
     N_CLUSTERS,
@@ -45,7 +46,6 @@ from sensorimotor.analysis.representation import (
     raw_representation,
     world_events,
 )
-from sensorimotor.analysis.run import RAW, analyze_files, representation_of, summary_lines
 
 # Raised whenever a metric's definition changes, so that ``reproduce`` redoes kept analyses.
 # 2: KNN-MSE averages ties between identical representations (was: broken by search order).

@@ -8,7 +8,6 @@ import numpy as np
 from sklearn.cluster import KMeans
 from sklearn.decomposition import PCA
 
-from sensorimotor import events as ev
 from sensorimotor.analysis.clusters import (
     N_CLUSTERS,
     assign_clusters,
@@ -20,14 +19,15 @@ from sensorimotor.analysis.clusters import (
     project_2d,
 )
 from sensorimotor.analysis.probes import memory_scores, position_scores
-from sensorimotor.sim import DEFAULT_LAYOUT, SensorLayout
-from sensorimotor.world import World
+from sensorimotor.sim import events as ev
+from sensorimotor.sim.core import DEFAULT_LAYOUT, SensorLayout
+from sensorimotor.sim.world import World
 
 
 def raw_representation(sensors: np.ndarray, max_range: float = 10.0) -> np.ndarray:
     """The paper's sensory-space baseline: the readings divided by the range, (N, R) float32
     (the models' input scaling, ``data.scale_sensors``)."""
-    from sensorimotor.data import scale_sensors
+    from sensorimotor.sim.database import scale_sensors
 
     return scale_sensors(sensors, max_range)
 

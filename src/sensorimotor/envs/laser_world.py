@@ -10,9 +10,9 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from sensorimotor import sim
 from sensorimotor.errors import InputError
-from sensorimotor.world import World, load_world, point_segment_distance
+from sensorimotor.sim import core as sim
+from sensorimotor.sim.world import World, load_world, point_segment_distance
 
 MAX_STEP = 1.0  # units; the largest translation d of one command (the paper's d ~ U(0, 1))
 MAX_TURN = math.pi + math.pi / 10  # rad; the paper's largest turn-around, pi + pi/10
@@ -33,7 +33,7 @@ class LaserWorldEnv(gym.Env[np.ndarray, np.ndarray]):
     ``paper_policy`` (in this module) is the paper's random wall-avoiding behaviour; run with it,
     the environment records the same rows as ``sensorimotor generate`` (see ``paper_policy``).
 
-    The physics is the package's simulation core (``sensorimotor.sim``, compiled with numba):
+    The physics is the package's simulation core (``sensorimotor.sim.core``, compiled with numba):
     ``sim.cast_rays`` for the readings and for the collision check, ``sim.apply_motor`` for the
     motion, ``sim.sample_start`` for the start pose. Worlds are ``square``, ``rooms1``,
     ``rooms2`` (50 x 50, paper Fig. 1) or any TOML world file.
@@ -122,7 +122,7 @@ class LaserWorldEnv(gym.Env[np.ndarray, np.ndarray]):
     ``gym.make("sensorimotor.envs:sensorimotor/LaserWorld-v0")`` imports the module itself.
     ``render()`` with ``render_mode="rgb_array"`` returns an ``(H, W, 3)`` ``uint8`` image: the
     walls, the agent with its heading, and the 5 rays to the points they perceive (red dots),
-    drawn by ``sensorimotor.plots.plot_perception`` (matplotlib, imported on first render).
+    drawn by ``sensorimotor.sim.plots.plot_perception`` (matplotlib, imported on first render).
 
     ## Version History
 
@@ -237,7 +237,7 @@ class LaserWorldEnv(gym.Env[np.ndarray, np.ndarray]):
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
 
-        from sensorimotor.plots import plot_perception
+        from sensorimotor.sim.plots import plot_perception
 
         if self._figure is None:
             self._figure = Figure(figsize=(4, 4), dpi=100, layout="constrained")

@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from sensorimotor.data import Database, as_database, scale_motors, scale_sensors
 from sensorimotor.errors import InputError
-from sensorimotor.models import ModelConfig, SensorimotorEncoder, build_model
-from sensorimotor.runs import load_weights_into, torch_load
+from sensorimotor.learn.models import ModelConfig, SensorimotorEncoder, build_model
+from sensorimotor.learn.runs import load_weights_into, torch_load
+from sensorimotor.sim.database import Database, as_database, scale_motors, scale_sensors
 
 CHUNK = 20_000  # steps per forward pass when running a whole split (memory bound, not a result)
 

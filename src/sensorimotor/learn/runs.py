@@ -22,14 +22,16 @@ from typing import TYPE_CHECKING
 
 import torch
 
-from sensorimotor import MAX_SEED, __version__
-from sensorimotor.data import Database, atomic_path, check_writable, file_hash
-from sensorimotor.data import write_text_atomic as _write_text
 from sensorimotor.errors import InputError
-from sensorimotor.models import MODEL_KINDS, ModelConfig
+from sensorimotor.files import atomic_path, check_writable, file_hash
+from sensorimotor.files import write_text_atomic as _write_text
+from sensorimotor.learn.models import MODEL_KINDS, ModelConfig
+from sensorimotor.sim.core import MAX_SEED
+from sensorimotor.sim.database import Database
+from sensorimotor.version import __version__
 
 if TYPE_CHECKING:
-    from sensorimotor.train import FusedAdam
+    from sensorimotor.learn.adam import FusedAdam
 
 
 RUN_FILES = ("config.json", "model.pt", "checkpoint.pt", "history.csv", "result.json")

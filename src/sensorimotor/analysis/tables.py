@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-from sensorimotor.data import Database
 from sensorimotor.errors import InputError
-from sensorimotor.evaluate import Run, baselines, evaluate_run, mean_sd
-from sensorimotor.models import MODEL_KINDS, MODEL_NAMES
-from sensorimotor.runs import setting_changes
+from sensorimotor.learn.evaluate import Run, baselines, evaluate_run, mean_sd
+from sensorimotor.learn.models import MODEL_KINDS, MODEL_NAMES
+from sensorimotor.learn.runs import setting_changes
+from sensorimotor.sim.database import Database
 
 # The paper's Table I: models trained on Square, tested on each world (sum over sensors).
 PAPER_TABLE_I = {

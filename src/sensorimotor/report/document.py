@@ -15,10 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
-from sensorimotor.claims import claim_numbers, cluster_f1, fmt_ms, paper_claims
-from sensorimotor.data import write_text_atomic
-from sensorimotor.models import MODEL_KINDS, MODEL_NAMES
-from sensorimotor.tables import PAPER_TABLE_I, fmt_cell
+from sensorimotor.analysis.claims import claim_numbers, cluster_f1, fmt_ms, paper_claims
+from sensorimotor.analysis.tables import PAPER_TABLE_I, fmt_cell
+from sensorimotor.files import write_text_atomic
+from sensorimotor.learn.models import MODEL_KINDS, MODEL_NAMES
 
 PCA_ORDER = ("raw", "s", "rec-s", "sm", "rec-sm")  # the panels of paper Fig. 4, left to right
 LABEL = {"raw": "Sensory (raw readings)", **MODEL_NAMES}
@@ -139,14 +139,10 @@ def paper_agreement(rows: list[dict], worlds: list[str], tolerance: float = 0.25
 
 
 def _figures(rep) -> dict[str, Path]:
-    from sensorimotor.analysis_plots import plot_pca
-    from sensorimotor.data import load_database
-    from sensorimotor.plots import (
-        perception_figure,
-        save_figure,
-        trajectories_figure,
-        worlds_figure,
-    )
+    from sensorimotor.analysis.plots import plot_pca
+    from sensorimotor.report.figures import perception_figure, trajectories_figure, worlds_figure
+    from sensorimotor.sim.database import load_database
+    from sensorimotor.sim.plots import save_figure
 
     figs: dict[str, Path] = {}
     folder = rep.out / "figures"
@@ -162,7 +158,7 @@ def _figures(rep) -> dict[str, Path]:
 
     from matplotlib.figure import Figure
 
-    for world in rep.data:
+    for world in rep.worlds:
         panels = [("raw", rep.out / "analysis" / f"raw__{world}")] + [
             (k, rep.out / "analysis" / f"{world}__{k}__s0") for k in PCA_ORDER[1:]
         ]
@@ -185,7 +181,7 @@ def write_report(rep, argv: list[str], hardware: dict) -> tuple[Path, Path]:
     figs = _figures(rep)
     figure_seconds = time.perf_counter() - t0
     out = rep.out
-    worlds = list(rep.data)
+    worlds = list(rep.worlds)  # trained on; every model is tested on all of rep.data
     b: list[Block] = [h(1, "sensorimotor: reproduction report")]
     b.append(
         p(

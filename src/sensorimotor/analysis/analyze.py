@@ -18,22 +18,17 @@ from pathlib import Path
 
 import numpy as np
 
-from sensorimotor import __version__
 from sensorimotor.analysis.clusters import N_CLUSTERS
 from sensorimotor.analysis.representation import (
     RepresentationAnalysis,
     analyze_representation,
     raw_representation,
 )
-from sensorimotor.data import (
-    Database,
-    atomic_path,
-    check_writable,
-    load_database,
-    write_text_atomic,
-)
 from sensorimotor.errors import InputError
-from sensorimotor.sim import read_sensors
+from sensorimotor.files import atomic_path, check_writable, write_text_atomic
+from sensorimotor.sim.core import read_sensors
+from sensorimotor.sim.database import Database, load_database
+from sensorimotor.version import __version__
 
 RAW = "raw"  # the RUN_DIR that means "the raw readings"
 SPLIT = "test"
@@ -49,7 +44,7 @@ def representation_of(run, db: Database, split: str = SPLIT) -> np.ndarray:
         )
     if isinstance(run, str) and run == RAW:
         return raw_representation(db.take(split).sensors, db.max_range)
-    from sensorimotor.evaluate import representation  # torch only when a model is analysed
+    from sensorimotor.learn.evaluate import representation  # torch only when a model is analysed
 
     return representation(run, db, split)
 
@@ -121,13 +116,13 @@ def analyze_files(
     """Analyse ``run``'s representation (``"raw"`` or a run folder) of ``data``'s test split and
     write the figures (PNG, and SVG with ``svg``) and ``metrics.json`` into ``out`` (see the
     module docstring)."""
-    from sensorimotor.analysis_plots import plot_clusters, plot_pca, plot_transfer
-    from sensorimotor.plots import save_figure
+    from sensorimotor.analysis.plots import plot_clusters, plot_pca, plot_transfer
+    from sensorimotor.sim.plots import save_figure
 
     db = load_database(data)
     fit_db = load_database(fit_data) if fit_data is not None else None
     if str(run) != RAW:
-        from sensorimotor.evaluate import load_run
+        from sensorimotor.learn.evaluate import load_run
 
         run = load_run(run)
     else:

@@ -5,7 +5,7 @@ of 64 streams x 20 steps launches a few hundred kernels and takes about 5 ms of 
 an H100, the kernels a fraction of that. A CUDA graph records a step's kernels once, reading
 its inputs from fixed buffers; each replay runs the same kernels on the buffers' new contents
 in one launch. Only the launching changes, so the numbers are the eager loop's (tests check
-it); ``train.train_epoch_recurrent`` and ``stacked.train_epoch_stacked`` use this on CUDA.
+it); ``autograd.train_epoch_recurrent`` and ``stacked.train_epoch_stacked`` use this on CUDA.
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ def capture(step: Callable[[], None]) -> torch.cuda.CUDAGraph:
 
 @dataclass
 class RecurrentStep:
-    """One truncated-BPTT step of ``train.train_epoch_recurrent`` as a graph: inputs x, xm, y
+    """One truncated-BPTT step of ``autograd.train_epoch_recurrent`` as a graph: inputs x, xm, y
     (streams, horizon, 5|2|5), the LSTM state (h, c) carried in place from step to step, and
     the epoch's summed squared error ``total``."""
 
@@ -53,8 +53,8 @@ class RecurrentStep:
 
 
 def recurrent_step(model, opt, streams: int, horizon: int) -> RecurrentStep:
-    """The graph of ``model``'s step with ``opt`` (a ``train.FusedAdam``), made once per shape
-    and kept on the optimizer; captured by the first ``run`` call."""
+    """The graph of ``model``'s step with ``opt`` (an ``adam.FusedAdam``), made once per shape
+    and kept on the optimizer; captured by the first ``replay_recurrent`` call."""
     key = ("recurrent", streams, horizon)
     if key not in opt.graphs:
         c = model.config
@@ -71,7 +71,7 @@ def recurrent_step(model, opt, streams: int, horizon: int) -> RecurrentStep:
     return opt.graphs[key]
 
 
-def run_recurrent(step: RecurrentStep, model, opt) -> None:
+def replay_recurrent(step: RecurrentStep, model, opt) -> None:
     """One step on what ``step``'s buffers hold: the eager loop's arithmetic, in its order."""
     if step.graph is not None:
         step.graph.replay()
@@ -109,7 +109,7 @@ class StackedSteps:
 
 def stacked_steps(net, batch: int) -> StackedSteps:
     """The graph of ``net``'s steps at ``batch``, made once and kept on the stack (until its
-    seeds change); captured by the first ``run_stacked`` call."""
+    seeds change); captured by the first ``replay_stacked`` call."""
     if batch not in net.graphs:
         c, k, rows = net.config, net.k, GRAPH_BATCHES * batch
         dev = net.params[0].device
@@ -124,7 +124,7 @@ def stacked_steps(net, batch: int) -> StackedSteps:
     return net.graphs[batch]
 
 
-def run_stacked(steps: StackedSteps, net) -> None:
+def replay_stacked(steps: StackedSteps, net) -> None:
     """``GRAPH_BATCHES`` steps of every seed on what ``steps``' buffers hold, in order."""
     if steps.graph is not None:
         steps.graph.replay()

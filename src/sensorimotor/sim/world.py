@@ -135,7 +135,7 @@ def load_world(spec: str | Path) -> World:
     """A built-in world by name (``square``, ``rooms1``, ``rooms2``) or a TOML world file's path."""
     spec_str = str(spec)
     if spec_str in BUILTIN_WORLDS:
-        text = resources.files("sensorimotor.worlds").joinpath(f"{spec_str}.toml").read_text()
+        text = resources.files("sensorimotor.sim.worlds").joinpath(f"{spec_str}.toml").read_text()
         return world_from_dict(tomllib.loads(text), f"{spec_str}.toml")
     path = Path(spec)
     if not path.exists():

@@ -4,7 +4,7 @@ Stages, each cached under ``OUT`` by a hash of what it depends on (a rerun does 
 missing; a killed run resumes, losing nothing finished):
 
     data      OUT/data/{world}.npz                     one database per world
-    train     OUT/runs/{world}__{model}__s{seed}/      every model on every world, K seeds
+    train     OUT/runs/{world}__{model}__s{seed}/      every model on every world (--worlds), K seeds
     evaluate  OUT/eval/{run}.json                      each run on the three test splits
     analyze   OUT/analysis/{run}/, OUT/analysis/raw__{world}/, OUT/transfer/{run}__to__{world}/
     report    OUT/report.md, OUT/report.html           Table I, figures, the paper's claims
@@ -18,17 +18,17 @@ import platform
 import shutil
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from sensorimotor import __version__
-from sensorimotor.data import file_hash, write_text_atomic
 from sensorimotor.errors import InputError
-from sensorimotor.models import MODEL_KINDS
-from sensorimotor.parallel import Job, default_workers, report, run_jobs
-from sensorimotor.runs import count
+from sensorimotor.files import file_hash, write_text_atomic
+from sensorimotor.learn.models import MODEL_KINDS
+from sensorimotor.learn.runs import count
+from sensorimotor.report.workers import Job, default_workers, report, run_jobs
+from sensorimotor.version import __version__
 
 WORLDS = ("square", "rooms1", "rooms2")
 TRANSFER_FROM = ("square", "rooms1")  # paper Figs. 8-9: Rec-SM clusters carried to other worlds
@@ -96,8 +96,8 @@ def _write_json(path: Path, obj) -> None:
 
 
 def _data_job(world: str, steps: int, seed: int, path: str, key: str) -> str:
-    from sensorimotor.data import generate, save_database
-    from sensorimotor.world import load_world
+    from sensorimotor.sim.database import generate, save_database
+    from sensorimotor.sim.world import load_world
 
     save_database(generate(load_world(world), steps, seed), path)
     _write_json(Path(path).with_suffix(".json"), {"key": key})
@@ -112,8 +112,8 @@ def _data_key(world: str, sc: Scale) -> str:
 def run_matches(run: Path, data_sha: str, config: dict) -> bool:
     """Whether a run folder was made from this data, this training configuration and the
     model sizes ``models.py`` gives now."""
-    from sensorimotor.models import ModelConfig
-    from sensorimotor.train import TrainConfig
+    from sensorimotor.learn.models import ModelConfig
+    from sensorimotor.learn.runs import TrainConfig
 
     try:
         made = json.loads((run / "config.json").read_text())
@@ -154,37 +154,13 @@ def _train_config(sc: Scale, model: str, device: str, seed: int | None = None) -
     return config if seed is None else {**config, "seed": seed}
 
 
-def _train_job(data: str, run_dir: str, config: dict, data_sha: str) -> dict:
-    from sensorimotor.data import load_database
-    from sensorimotor.train import TrainConfig, train
-
-    load_database(data)  # bad data fails here, before a stale run folder is cleared
-    run = Path(run_dir)
-    if run.exists() and not run_matches(run, data_sha, config):
-        shutil.rmtree(run)  # made from other inputs: start again
-    name = run.name
-
-    def on_epoch(r, stopper) -> None:
-        report(
-            name,
-            f"epoch {r.epoch:3d} val {r.val_error:.5f} (best {stopper.lowest:.5f}) "
-            f"{r.samples_per_s / 1e3:.0f} k samples/s",
-        )
-
-    result = train(data, run, TrainConfig(**config), resume=True, on_epoch=on_epoch)
-    report(
-        name,
-        f"done: {result.ending}, best val {result.best_val_error:.5f}",
-    )
-    return {"epochs": result.epochs, "best_val_error": result.best_val_error}
-
-
-def _train_stack_job(runs: list[tuple[str, int, str, str]], config: dict) -> dict:
-    """Several seeds of one model in one process, stacked (``stacked.train_runs``); each run
-    ``(data, seed, run folder, data hash)``, feed-forward ones from several worlds at once.
+def _train_job(runs: list[tuple[str, int, str, str]], config: dict) -> dict:
+    """Runs of one model in one process, in one ``train.train_runs`` call (stacked where the
+    model and device allow); each run ``(data, seed, run folder, data hash)``, feed-forward
+    ones from several worlds at once.
     The runs of a database that fails to load are left out, the others train, then the job
     fails naming the first run left out and its file."""
-    from sensorimotor.data import load_database
+    from sensorimotor.sim.database import load_database
 
     bad: dict[str, InputError] = {}
     for data in dict.fromkeys(data for data, _, _, _ in runs):
@@ -203,9 +179,9 @@ def _train_stack_job(runs: list[tuple[str, int, str, str]], config: dict) -> dic
 
 
 def _train_stack(runs: list[tuple[str, int, str, str]], config: dict) -> dict:
-    """``_train_stack_job``'s training, its databases known to load."""
-    from sensorimotor.stacked import train_runs
-    from sensorimotor.train import TrainConfig
+    """``_train_job``'s training, its databases known to load."""
+    from sensorimotor.learn.runs import TrainConfig
+    from sensorimotor.learn.train import train_runs
 
     for _, seed, run_dir, data_sha in runs:
         run = Path(run_dir)
@@ -237,8 +213,8 @@ def _train_stack(runs: list[tuple[str, int, str, str]], config: dict) -> dict:
 
 
 def _eval_job(run_dir: str, data: list[str], out: str, key: str) -> dict:
-    from sensorimotor.data import load_database
-    from sensorimotor.evaluate import evaluate_run, load_run
+    from sensorimotor.learn.evaluate import evaluate_run, load_run
+    from sensorimotor.sim.database import load_database
 
     res = evaluate_run(load_run(run_dir), [load_database(p) for p in data])
     _write_json(Path(out), {"key": key, "result": res})
@@ -265,6 +241,7 @@ class Reproduction:
     seeds: int
     device: str
     workers: int
+    worlds: tuple[str, ...] = WORLDS  # trained on (and analysed in); tested on all of WORLDS
     timings: dict[str, dict] = field(default_factory=dict)
     data: dict[str, Path] = field(default_factory=dict)
     runs: list[tuple[str, str, int]] = field(default_factory=list)  # (world, model, seed)
@@ -273,7 +250,7 @@ class Reproduction:
     transfers: dict[str, dict] = field(default_factory=dict)
 
     def run_name(self, world: str, model: str, seed: int) -> str:
-        from sensorimotor.runs import run_name
+        from sensorimotor.learn.runs import run_name
 
         return run_name(world, model, seed)
 
@@ -302,6 +279,18 @@ def _raise_failures(failures, log) -> None:
         msg = msg if msg.startswith(f"{first.name}") else f"{first.name}: {msg}"
         raise InputError(f"run {msg}{more}")
     raise RuntimeError(f"run {first.name} failed{more}") from first.error
+
+
+def check_worlds(worlds: Sequence[str] | None) -> tuple[str, ...]:
+    """The trained worlds, in the paper's order: any of ``WORLDS``, at least one."""
+    if worlds is None:
+        return WORLDS
+    unknown = [w for w in worlds if w not in WORLDS]
+    if unknown or not worlds:
+        raise InputError(
+            f"--worlds: use any of {', '.join(WORLDS)} (comma-separated), got {','.join(worlds)!r}"
+        )
+    return tuple(w for w in WORLDS if w in worlds)
 
 
 def _eval_path(rep: Reproduction, name: str) -> Path:
@@ -380,8 +369,12 @@ def reproduce(
     workers: int = 1,
     log: Callable[[str], None] = print,
     argv: list[str] | None = None,
+    worlds: Sequence[str] | None = None,
 ) -> Reproduction:
-    """Run (or resume) every stage; returns what was found. See the module docstring."""
+    """Run (or resume) every stage; returns what was found. See the module docstring.
+
+    ``worlds``: the worlds models are trained and analysed in, any of ``WORLDS`` (default
+    all); every trained model is still tested on all three, as the paper's Table I."""
     if scale not in SCALES:
         raise InputError(f"unknown scale {scale!r}: use one of {', '.join(SCALES)}")
     sc = SCALES[scale]
@@ -390,7 +383,8 @@ def reproduce(
         raise InputError(f"--seeds must be at least 1, got {seeds}")
     if workers < 1:
         raise InputError(f"--workers must be at least 1, got {workers}")
-    from sensorimotor.train import resolve_device
+    trained = check_worlds(worlds)
+    from sensorimotor.learn.train import resolve_device
 
     device = resolve_device(device)  # before any folder is made
     out = Path(out)
@@ -401,7 +395,7 @@ def reproduce(
             (out / sub).mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise InputError(f"{out}: cannot create the output folder ({err.strerror})") from None
-    rep = Reproduction(out, sc, seeds, device, workers)
+    rep = Reproduction(out, sc, seeds, device, workers, trained)
     t_start = time.perf_counter()
 
     def progress(name: str, message: str) -> None:
@@ -425,12 +419,13 @@ def reproduce(
 
     # train --------------------------------------------------------------------------------
     with _stage(rep, "train", log):
-        from sensorimotor.stacked import computes_models_py, trains_stacked
+        from sensorimotor.learn.fast.stacked_engine import computes_models_py
+        from sensorimotor.learn.train import trains_stacked
 
         jobs, n_train = [], 0
         trains: dict[str, list[tuple[str, str, int]]] = {}  # job name -> the runs it trains
         stacks: dict[tuple, list] = {}  # (model,) or (model, world) -> runs of one stacked job
-        for world in WORLDS:
+        for world in rep.worlds:
             for model in MODEL_KINDS:
                 for seed in range(seeds):
                     rep.runs.append((world, model, seed))
@@ -446,13 +441,14 @@ def reproduce(
                         entry = (str(rep.data[world]), seed, str(run), data_hash[world])
                         stacks.setdefault(key, []).append((world, entry))
                         continue
-                    args = (str(rep.data[world]), str(run), config, data_hash[world])
-                    jobs.append(Job(run.name, _train_job, args))
+                    entry = (str(rep.data[world]), seed, str(run), data_hash[world])
+                    config = _train_config(sc, model, device)
+                    jobs.append(Job(run.name, _train_job, ([entry], config)))
                     trains[run.name] = [(world, model, seed)]
         for (model, *_), stack in stacks.items():
             name = _stack_name(model, [(world, sd) for world, (_, sd, _, _) in stack])
             config = _train_config(sc, model, device)
-            jobs.append(Job(name, _train_stack_job, ([e for _, e in stack], config)))
+            jobs.append(Job(name, _train_job, ([e for _, e in stack], config)))
             trains[name] = [(world, model, sd) for world, (_, sd, _, _) in stack]
         # longest first, so that the workers finish closer together
         jobs.sort(key=lambda job: -sum(SEED_COST[model] for _, model, _ in trains[job.name]))
@@ -473,7 +469,7 @@ def reproduce(
         for model in MODEL_KINDS:
             if model in to_train and not computes_models_py(model):
                 log(
-                    f"  [yellow]models.py's {model} is not what stacked.py computes: it trains "
+                    f"  [yellow]models.py's {model} is not what the stacked passes compute: it trains "
                     "with autograd (slower)"
                 )
         overlapped = {"evaluate": 0, "analyze": 0}
@@ -490,7 +486,7 @@ def reproduce(
             overlapped["analyze"] += sum(job.fn is _analysis_job for job in more)
             return more
 
-        raw = [_analysis_job_of(tg, path_hash) for w in WORLDS for tg in _raw_targets(rep, w)]
+        raw = [_analysis_job_of(tg, path_hash) for w in rep.worlds for tg in _raw_targets(rep, w)]
         jobs += [job for job in raw if job is not None]  # cheap: they fill the end
         overlapped["analyze"] += len(jobs) - n_jobs
         _, failures = run_jobs(jobs, workers, progress, then=then)
@@ -510,9 +506,9 @@ def reproduce(
         new, failures = run_jobs(jobs, workers, progress)
         _raise_failures(failures, log)
         results.update(new)
-        from sensorimotor.data import load_database
-        from sensorimotor.evaluate import baselines
-        from sensorimotor.tables import table_from_results
+        from sensorimotor.analysis.tables import table_from_results
+        from sensorimotor.learn.evaluate import baselines
+        from sensorimotor.sim.database import load_database
 
         base = {w: baselines(load_database(rep.data[w])) for w in WORLDS}
         ordered = [results[rep.run_name(*r)] for r in rep.runs]
@@ -521,7 +517,7 @@ def reproduce(
 
     # analyze ------------------------------------------------------------------------------
     with _stage(rep, "analyze", log):
-        targets = [tg for world in WORLDS for tg in _raw_targets(rep, world)]
+        targets = [tg for world in rep.worlds for tg in _raw_targets(rep, world)]
         targets += [tg for run in rep.runs for tg in _analysis_targets(rep, *run)]
         jobs = [_analysis_job_of(tg, path_hash) for tg in targets]
         jobs = [job for job in jobs if job is not None]
@@ -534,7 +530,7 @@ def reproduce(
 
     # report -------------------------------------------------------------------------------
     with _stage(rep, "report", log):
-        from sensorimotor.report import write_report
+        from sensorimotor.report.document import write_report
 
         rep.timings["total"] = {"seconds": time.perf_counter() - t_start}
         write_report(rep, argv if argv is not None else sys.argv, hardware())

@@ -31,15 +31,10 @@ import numba
 import numpy as np
 import torch
 
-from sensorimotor.stacked import (
-    ALIGN_ROWS,
-    StackedEncoders,
-    linear,
-    matmul,
-    relu_grad_,
-    weight_grad,
-)
-from sensorimotor.train import stream_layout
+from sensorimotor.learn.batches import stream_layout
+from sensorimotor.learn.fast.private import relu_grad_
+from sensorimotor.learn.fast.products import ALIGN_ROWS, linear, matmul, weight_grad
+from sensorimotor.learn.fast.stacked import StackedEncoders
 
 # tanh(x) ~ x P(x^2) / Q(x^2) on |x| <= TANH_CLAMP (beyond it float32 tanh is +-1); relative
 # minimax fit by iterated weighted least squares against float64 tanh.
@@ -250,7 +245,7 @@ def forward_backward(
 
     xs (T, B, 5) sensors, xm (T, B, 2) motors (None for Rec-S), y (T, B, 5) next sensors, all
     shared by the seeds; weight (T, B) 0/1 for padded stream ends, or None. The loss is the
-    paper's error averaged over the chunk's (weighted) steps, as ``train.train_epoch_recurrent``.
+    paper's error averaged over the chunk's (weighted) steps, as ``engine.train_epoch_recurrent``.
     """
     c = net.config
     K, plan, grads = net.k, net.layers, net.grads
@@ -336,7 +331,7 @@ def forward_backward(
 def train_epoch_stacked_recurrent(
     net: StackedEncoders, s: torch.Tensor, m: torch.Tensor, streams: int, horizon: int
 ) -> torch.Tensor:
-    """One epoch of truncated BPTT for every seed of ``net``, as ``train.train_epoch_recurrent``
+    """One epoch of truncated BPTT for every seed of ``net``, as ``engine.train_epoch_recurrent``
     runs it for one: ``streams`` contiguous streams, chunks of ``horizon`` steps, the state
     carried (detached) and reset each epoch. Returns each seed's mean training error (K,)."""
     n = len(s) - 1
@@ -367,7 +362,7 @@ def sequence_errors(
     net: StackedEncoders, sensors: torch.Tensor, motors: torch.Tensor, chunk: int = 4096
 ) -> list[float]:
     """Each seed's error over one contiguous split (n, 5), (n, 2), from a zero state carried
-    throughout: ``train.model_error`` of every seed at once, to float32 rounding.
+    throughout: ``evaluate.model_error`` of every seed at once, to float32 rounding.
 
     ``chunk`` steps run at a time, a multiple of 16 so that every seed's slab of a stacked
     product starts on a 64-byte boundary, as alone; the last chunk is padded at its end (the

@@ -26,8 +26,14 @@ import math
 
 import numpy as np
 
-from sensorimotor.sim import DEFAULT_LAYOUT, MAX_RANGE, SENSOR_ANGLES, SensorLayout, read_sensors
-from sensorimotor.world import World, point_segment_distance
+from sensorimotor.sim.core import (
+    DEFAULT_LAYOUT,
+    MAX_RANGE,
+    SENSOR_ANGLES,
+    SensorLayout,
+    read_sensors,
+)
+from sensorimotor.sim.world import World, point_segment_distance
 
 TOUCH_TOL = 1e-6  # units; an end point this close to another wall touches it
 SIGHT_TOL = 1e-6  # units; a first hit this much short of the point still counts as the point

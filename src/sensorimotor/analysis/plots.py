@@ -19,8 +19,8 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from sensorimotor.plots import PANEL_SIZE, panel_size, plot_world, world_aspect
-from sensorimotor.world import World
+from sensorimotor.sim.plots import PANEL_SIZE, panel_size, plot_world, world_aspect
+from sensorimotor.sim.world import World
 
 N_ARROWS = 500  # steps drawn per cluster (the paper's number)
 ARROW_LENGTH = 0.05  # arrow length, as a fraction of the world's larger side

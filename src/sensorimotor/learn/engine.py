@@ -1,0 +1,170 @@
+"""What the training loop drives: an engine trains several seeds of one model through one
+epoch at a time, and the plain one, autograd through ``models.py``.
+
+The loop (``train.train_runs``) owns the run folders, early stopping, checkpoints and records;
+an engine owns only the arithmetic, behind four calls:
+
+    train_epoch(epoch) -> each seed's mean training error
+    val_errors()       -> each seed's validation error (and each seed's model brought up to date)
+    snapshot(k)        -> seed k's model and Adam state, to save
+    keep(index)        -> only those seeds go on (the others stopped)
+
+and ``merge(engines)``, which joins engines whose seeds reached the same epoch (a resume
+after a kill between two seeds' checkpoints). ``AutogradEngine`` below trains each seed's
+``nn.Module`` with autograd; ``fast.stacked_engine.StackedEngine`` trains them all as one
+network with stacked weights, to float32 rounding the same numbers.
+
+Feed-forward models (S, SM) see the train split's transitions (s_t, m_t) -> s_{t+1} shuffled,
+every one once per epoch. Recurrent models see the train split cut into ``batch_size``
+contiguous streams; each batch is the next ``horizon`` steps of every stream, the LSTM state
+carried (detached) from one batch to the next and reset at each epoch (truncated
+back-propagation through time). The data live as tensors and are gathered once per epoch so
+that each batch is a view; nothing in the step loop talks to the host.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Protocol
+
+import torch
+
+from sensorimotor.learn.adam import FusedAdam
+from sensorimotor.learn.batches import epoch_generator, stream_layout
+from sensorimotor.learn.evaluate import model_error
+from sensorimotor.learn.fast import cuda_graphs
+from sensorimotor.learn.models import SensorimotorEncoder
+from sensorimotor.learn.runs import TrainConfig
+
+
+@dataclass
+class Member:
+    """One seed in an engine: its model and optimiser, and which database it trains on."""
+
+    seed: int
+    split: int  # index of its database in TrainData
+    model: SensorimotorEncoder  # the seed's weights (kept up to date by val_errors)
+    opt: FusedAdam  # its Adam state when the engine is built
+
+
+@dataclass
+class TrainData:
+    """The scaled train splits, resident on the training device, and the validation splits.
+
+    ``s`` (n + 1, 5) and ``m`` (n + 1, 2) for one database, or (W, n + 1, 5|2) for W
+    databases of one train length; ``val`` one (sensors, motors) pair per database."""
+
+    s: torch.Tensor
+    m: torch.Tensor
+    val: list[tuple[torch.Tensor, torch.Tensor]]
+
+    def train_split(self, split: int) -> tuple[torch.Tensor, torch.Tensor]:
+        """Database ``split``'s (sensors, motors) train tensors."""
+        return (self.s[split], self.m[split]) if self.s.dim() == 3 else (self.s, self.m)
+
+
+class Engine(Protocol):
+    members: list[Member]
+
+    def train_epoch(self, epoch: int) -> list[float]: ...
+
+    def val_errors(self) -> list[float]: ...
+
+    def snapshot(self, k: int) -> tuple[SensorimotorEncoder, dict]: ...
+
+    def keep(self, index: Sequence[int]) -> None: ...
+
+
+class AutogradEngine:
+    """Each seed's ``nn.Module`` trained with autograd and ``FusedAdam``, one after another:
+    the reference the stacked engine is checked against, and what trains a model that the
+    stacked passes do not compute, or the recurrent models on CUDA (cuDNN)."""
+
+    def __init__(self, members: Sequence[Member], data: TrainData, config: TrainConfig):
+        self.members, self.data, self.config = list(members), data, config
+
+    @classmethod
+    def merge(cls, engines: Sequence[AutogradEngine]) -> AutogradEngine:
+        return cls([mb for e in engines for mb in e.members], engines[0].data, engines[0].config)
+
+    def train_epoch(self, epoch: int) -> list[float]:
+        c, errors = self.config, []
+        for mb in self.members:
+            s, m = self.data.train_split(mb.split)
+            mb.model.train()
+            if mb.model.config.recurrent:
+                error = train_epoch_recurrent(mb.model, mb.opt, s, m, c.batch_size, c.horizon)
+            else:
+                order = epoch_generator(mb.seed, epoch)
+                error = train_epoch_feedforward(mb.model, mb.opt, s, m, c.batch_size, order)
+            errors.append(error)
+        return errors
+
+    def val_errors(self) -> list[float]:
+        return [model_error(mb.model, *self.data.val[mb.split]) for mb in self.members]
+
+    def snapshot(self, k: int) -> tuple[SensorimotorEncoder, dict]:
+        return self.members[k].model, self.members[k].opt.state_dict()
+
+    def keep(self, index: Sequence[int]) -> None:
+        self.members = [self.members[i] for i in index]
+
+
+def train_epoch_feedforward(model, opt, s, m, batch: int, gen: torch.Generator) -> float:
+    """One epoch over shuffled transitions; returns the mean training error."""
+    n = len(s) - 1
+    perm = torch.randperm(n, generator=gen).to(s.device)
+    xs, xm, y = s[:-1][perm], m[:-1][perm], s[1:][perm]  # (n, 5), (n, 2), (n, 5) gathered once
+    total = torch.zeros((), device=s.device)
+    for i in range(0, n, batch):
+        pred, _, _ = model(xs[i : i + batch], xm[i : i + batch])  # (b, 5)
+        loss = ((pred - y[i : i + batch]) ** 2).sum(-1).mean()
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        total += loss.detach() * len(pred)
+    return float(total) / n
+
+
+def train_epoch_recurrent(model, opt, s, m, streams: int, horizon: int) -> float:
+    """One epoch of truncated BPTT over ``streams`` contiguous streams; mean training error.
+
+    On CUDA the chunks that no stream's end pads run as one replayed graph each
+    (``fast.cuda_graphs``): the same arithmetic, a fraction of the launches."""
+    n = len(s) - 1
+    index, mask = stream_layout(n, streams)
+    graphed = 0  # leading steps of every stream run by the graph
+    if cuda_graphs.enabled(s):
+        unmasked = int(mask.all(0).long().cumprod(0).sum())  # columns before the first pad
+        graphed = unmasked // horizon * horizon
+    w = None if bool(mask.all()) else mask.float().to(s.device)  # (streams, L)
+    index = index.to(s.device)
+    xs, xm, y = s[:-1][index], m[:-1][index], s[1:][index]  # (streams, L, 5|2|5)
+    total = torch.zeros((), device=s.device)
+    state = None
+    if graphed:
+        step = cuda_graphs.recurrent_step(model, opt, streams, horizon)
+        step.h.zero_()
+        step.c.zero_()
+        total = step.total.zero_()
+        for j in range(0, graphed, horizon):
+            for buf, src in ((step.x, xs), (step.xm, xm), (step.y, y)):
+                buf.copy_(src[:, j : j + horizon])
+            cuda_graphs.replay_recurrent(step, model, opt)
+        state = (step.h.clone(), step.c.clone())
+    for j in range(graphed, index.shape[1], horizon):
+        pred, _, state = model(xs[:, j : j + horizon], xm[:, j : j + horizon], state)
+        state = tuple(t.detach() for t in state)  # carry, but stop gradients (truncation)
+        err = ((pred - y[:, j : j + horizon]) ** 2).sum(-1)  # (streams, h)
+        if w is None:
+            loss = err.mean()
+            total += loss.detach() * err.numel()
+        else:
+            wj = w[:, j : j + horizon]
+            loss = (err * wj).sum() / wj.sum()
+            total += (err * wj).sum().detach()
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+    return float(total) / n

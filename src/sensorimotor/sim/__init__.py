@@ -1,0 +1,4 @@
+"""The simulated robot and its worlds: geometry and world files (``world``), ray casting,
+kinematics, the wall-avoiding behaviour and rollouts (``core``), databases (``database``),
+ground-truth events from pose and walls (``events``), and the drawings of a world and of what
+the robot perceives (``plots``). Nothing here imports torch."""

@@ -1,0 +1,135 @@
+"""The package's layout: layers whose imports point one way, no import cycle, small modules.
+
+Every import counts, at the top of a module, inside a function or under ``TYPE_CHECKING``:
+an import moved into a function to dodge a cycle is still a cycle.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+import sensorimotor
+
+PACKAGE = Path(sensorimotor.__file__).parent
+# a module's layer: the first part of its name below the package; a layer may import its own
+# and those listed for it
+LAYERS = {
+    "errors": set(),
+    "version": set(),
+    "files": {"errors"},
+    "sim": {"errors", "files", "version"},
+    "learn": {"errors", "files", "version", "sim"},
+    "analysis": {"errors", "files", "version", "sim", "learn"},
+    "report": {"errors", "files", "version", "sim", "learn", "analysis"},
+    "envs": {"errors", "sim"},
+    "cli": {"errors", "files", "version", "sim", "learn", "analysis", "report"},
+    "__main__": {"cli"},
+    "__init__": {"errors", "version", "sim", "learn", "analysis", "report"},
+}
+MAX_TOP_LEVEL = 8
+MAX_LINES = 600
+
+
+def module_name(path: Path) -> str:
+    parts = path.relative_to(PACKAGE).with_suffix("").parts
+    if parts[-1] == "__init__" and len(parts) > 1:
+        parts = parts[:-1]
+    return ".".join(("sensorimotor", *parts))
+
+
+def imports_of(path: Path) -> set[str]:
+    """Every sensorimotor module that ``path`` imports, wherever the import statement is."""
+    name = module_name(path)
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found |= {a.name for a in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")
+                anchor = anchor[: len(anchor) - node.level + 1]
+                base = ".".join([*anchor, base] if base else anchor)
+            found.add(base)
+            found |= {f"{base}.{a.name}" for a in node.names}  # `from pkg import module`
+        elif isinstance(node, ast.Call) and getattr(node.func, "attr", "") == "import_module":
+            found |= {a.value for a in node.args if isinstance(a, ast.Constant)}
+        elif isinstance(node, ast.Dict):  # the lazy public API: {"name": "sensorimotor.x.y"}
+            found |= {
+                v.value
+                for v in node.values
+                if isinstance(v, ast.Constant) and str(v.value).startswith("sensorimotor.")
+            }
+    return {m for m in found if m.split(".")[0] == "sensorimotor"}
+
+
+MODULES = {module_name(p): p for p in sorted(PACKAGE.rglob("*.py"))}
+GRAPH = {
+    name: {m for m in imports_of(path) if m in MODULES} - {name} for name, path in MODULES.items()
+}
+
+
+def layer(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else "__init__"
+
+
+def test_every_import_points_down_the_layers():
+    wrong = [
+        f"{a} imports {b}"
+        for a, targets in GRAPH.items()
+        for b in targets
+        if layer(b) != layer(a) and layer(b) not in LAYERS[layer(a)]
+    ]
+    assert not wrong, wrong
+
+
+def test_no_import_cycle():
+    """Depth-first search over the whole graph; a back edge is a cycle, printed in full."""
+    state: dict[str, int] = {}  # 1: on the current path, 2: done
+    path: list[str] = []
+
+    def visit(m: str) -> list[str] | None:
+        state[m] = 1
+        path.append(m)
+        for n in sorted(GRAPH[m]):
+            if state.get(n) == 1:
+                return [*path[path.index(n) :], n]
+            if n not in state and (cycle := visit(n)):
+                return cycle
+        path.pop()
+        state[m] = 2
+        return None
+
+    for m in sorted(GRAPH):
+        if m not in state:
+            cycle = visit(m)
+            assert cycle is None, " -> ".join(cycle)
+
+
+def test_the_checks_find_a_cycle_and_an_upward_import(tmp_path, monkeypatch):
+    """The graph reader sees imports inside functions and under TYPE_CHECKING."""
+    sim = tmp_path / "sim"
+    sim.mkdir()
+    (sim / "a.py").write_text(
+        "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from sensorimotor.learn import x\n"
+        "def f():\n    from . import b\n"
+    )
+    monkeypatch.setattr(f"{__name__}.PACKAGE", tmp_path)
+    assert imports_of(sim / "a.py") >= {"sensorimotor.learn.x", "sensorimotor.sim.b"}
+
+
+def test_the_top_level_is_small_and_every_module_readable_in_one_sitting():
+    top = [p.name for p in PACKAGE.glob("*.py")]
+    assert len(top) <= MAX_TOP_LEVEL, top
+    long = {n: len(p.read_text().splitlines()) for n, p in MODULES.items()}
+    assert not {n: k for n, k in long.items() if k > MAX_LINES}
+
+
+@pytest.mark.parametrize("name", sensorimotor.__all__)
+def test_the_public_api_resolves(name):
+    assert getattr(sensorimotor, name) is not None
