@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from sensorimotor.errors import InputError
+from sensorimotor.sim.database import generate, load_database, save_database
 from sensorimotor.sim.world import (
     BUILTIN_WORLDS,
     free_start_cells,
@@ -178,3 +179,58 @@ def test_a_world_file_may_not_take_a_builtin_name_with_other_walls(tmp_path):
         load_world(unnamed)
     path.write_text('name = "square"\nsize = 50\nwalls = []\n')  # the built-in Square itself
     assert load_world(path) == load_world("square")
+
+
+def test_the_built_in_worlds_name_their_rooms_and_every_free_point_lies_in_one():
+    expected = {"square": 1, "rooms1": 3, "rooms2": 5}
+    for name, n in expected.items():
+        world = load_world(name)
+        assert len(world.rooms) == n
+        free = free_start_cells(world)
+        assert (world.room_index(free[:, 0], free[:, 1]) >= 0).all()
+    rooms1 = load_world("rooms1")
+    idx = rooms1.room_index(np.array([10.0, 10.0, 40.0, 25.0]), np.array([10.0, 40.0, 10.0, 10.0]))
+    assert [rooms1.rooms[i].name for i in idx] == ["southwest", "northwest", "east", "southwest"]
+
+
+def test_a_polygon_room_holds_what_is_inside_it_and_only_that(tmp_path):
+    path = tmp_path / "tri.toml"
+    path.write_text(
+        'name = "tri"\nsize = 10\nwalls = []\n'
+        'rooms = [{ name = "corner", polygon = [[0, 0], [10, 0], [0, 10]] }]\n'
+    )
+    world = load_world(path)
+    x, y = np.array([1.0, 6.0, 5.0, 0.0]), np.array([1.0, 6.0, 5.0, 10.0])
+    assert world.room_index(x, y).tolist() == [0, -1, 0, 0]  # the hypotenuse and a vertex count
+
+
+def test_rooms_travel_with_a_custom_worlds_database_but_not_a_built_in_ones(tmp_path):
+    path = tmp_path / "two.toml"
+    path.write_text(
+        'name = "two"\nsize = 20\nwalls = [[10, 0, 10, 15]]\n'
+        'rooms = [{ name = "a", rect = [0, 0, 10, 20] }, { name = "b", rect = [10, 0, 20, 20] }]\n'
+    )
+    for world, recorded in ((load_world(path), True), (load_world("rooms1"), False)):
+        save_database(generate(world, 500, seed=0), tmp_path / "db.npz")
+        db = load_database(tmp_path / "db.npz")
+        assert ("rooms" in db.meta["world"]) is recorded
+        assert [r.name for r in db.world.rooms] == [r.name for r in world.rooms]
+
+
+@pytest.mark.parametrize(
+    ("rooms", "needle"),
+    [
+        ('[{ name = "a", rect = [0, 0, 60, 10] }]', "outside"),
+        ('[{ name = "a", rect = [0, 0, 0, 10] }]', "zero area"),
+        ('[{ name = "a", rect = [0, 0, 5, 5] }, { name = "a", rect = [5, 5, 9, 9] }]', "taken"),
+        ('[{ name = "a", polygon = [[0, 0], [1, 1]] }]', "polygon 3 or more"),
+        ('[{ name = "a" }]', "room 0 must be"),
+        ('"hall"', "'rooms' must be a list"),
+    ],
+)
+def test_bad_rooms_are_refused_naming_the_file(rooms, needle, tmp_path):
+    path = tmp_path / "w.toml"
+    path.write_text(f'name = "w"\nsize = 50\nwalls = []\nrooms = {rooms}\n')
+    with pytest.raises(InputError, match=needle) as err:
+        load_world(path)
+    assert str(path) in str(err.value)

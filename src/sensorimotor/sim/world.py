@@ -3,6 +3,10 @@
 A world's geometry is one ``(S, 4)`` float64 array of segments ``x0, y0, x1, y1``: the four
 outer walls first, then the inner walls in file order. Everything downstream (ray casting,
 events, plots) reads that array and nothing else.
+
+A world may also name its rooms (rectangles or polygons): ground truth for the numbers that
+ask "which room is the robot in?" (the map, room-to-room tasks); the simulation never reads
+them. The built-in worlds name theirs.
 """
 
 from __future__ import annotations
@@ -27,6 +31,14 @@ NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]*")  # names run folders: 
 
 
 @dataclass(frozen=True, eq=False)
+class Room:
+    """A named region of a world: a simple polygon, (P, 2) float64 vertices in order."""
+
+    name: str
+    polygon: np.ndarray = field(repr=False)
+
+
+@dataclass(frozen=True, eq=False)
 class World:
     """A ``width x height`` rectangle whose edges are walls, plus inner wall segments."""
 
@@ -35,6 +47,8 @@ class World:
     height: float
     walls: np.ndarray = field(repr=False)
     """(N, 4) float64 inner walls ``x0, y0, x1, y1``; the outer walls are implied."""
+    rooms: tuple[Room, ...] = ()
+    """Named rooms, if the world file names any (ground truth only)."""
 
     @property
     def segments(self) -> np.ndarray:
@@ -44,12 +58,23 @@ class World:
         return np.concatenate([outer, self.walls]).astype(np.float64)
 
     def to_dict(self) -> dict:
-        """JSON-ready description: what a database's ``meta`` records of its world."""
-        return {
-            "name": self.name,
-            "size": [self.width, self.height],
-            "walls": self.walls.tolist(),
-        }
+        """JSON-ready description: what a database's ``meta`` records of its world. A built-in
+        world's rooms are not recorded (its name gives them back), so its databases are the
+        bytes they were before worlds had rooms."""
+        out = {"name": self.name, "size": [self.width, self.height], "walls": self.walls.tolist()}
+        if self.rooms and self.name not in BUILTIN_WORLDS:
+            out["rooms"] = [{"name": r.name, "polygon": r.polygon.tolist()} for r in self.rooms]
+        return out
+
+    def room_index(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """(N,) int64: the index in ``rooms`` of the room holding each point (the first one
+        listed where rooms overlap or share an edge), -1 where none does."""
+        x = np.asarray(x, dtype=np.float64)
+        y = np.asarray(y, dtype=np.float64)
+        out = np.full(x.shape, -1, dtype=np.int64)
+        for i, room in reversed(list(enumerate(self.rooms))):
+            out[point_in_polygon(room.polygon, x, y)] = i
+        return out
 
     def __eq__(self, other: object) -> bool:
         return isinstance(other, World) and self.to_dict() == other.to_dict()
@@ -73,9 +98,9 @@ def world_from_dict(data: dict, source: str = "<dict>") -> World:
 
     if not isinstance(data, dict):
         raise fail("a world must be a table with keys 'size' and 'walls'")
-    unknown = sorted(set(data) - {"name", "size", "walls"})
+    unknown = sorted(set(data) - {"name", "size", "walls", "rooms"})
     if unknown:
-        raise fail(f"unknown key {unknown[0]!r} (allowed: name, size, walls)")
+        raise fail(f"unknown key {unknown[0]!r} (allowed: name, size, walls, rooms)")
     for key in ("size", "walls"):
         if key not in data:
             raise fail(f"missing key {key!r}")
@@ -125,10 +150,92 @@ def world_from_dict(data: dict, source: str = "<dict>") -> World:
             f"'name' must be letters, digits and _ . + - (starting with a letter or digit), "
             f"got {name!r}"
         )
-    world = World(name, width, height, np.array(rows, dtype=np.float64).reshape(-1, 4))
+    rooms = _rooms(data.get("rooms", []), width, height, fail)
+    world = World(name, width, height, np.array(rows, dtype=np.float64).reshape(-1, 4), rooms)
+    if not rooms and name in BUILTIN_WORLDS and source != f"{name}.toml":
+        builtin = _builtin(name)  # a database's meta: the built-in's rooms, if its walls
+        if world == builtin:
+            world = builtin
     if free_start_cells(world).size == 0:
         raise fail(f"no free start position (every point is within {START_CLEARANCE:g} of a wall)")
     return world
+
+
+def _rooms(rooms, width: float, height: float, fail) -> tuple[Room, ...]:
+    """Validate the ``rooms`` key: a list of tables ``{name = "hall", rect = [x0, y0, x1, y1]}``
+    or ``{name = "hall", polygon = [[x, y], ...]}`` (3 or more vertices), inside the world,
+    names distinct."""
+    if not isinstance(rooms, list):
+        raise fail(f"'rooms' must be a list of tables, got {rooms!r}")
+    out: list[Room] = []
+    for i, room in enumerate(rooms):
+        if not isinstance(room, dict) or set(room) not in ({"name", "rect"}, {"name", "polygon"}):
+            raise fail(f"room {i} must be {{name, rect = [x0, y0, x1, y1]}} or {{name, polygon}}")
+        name = room["name"]
+        if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name):
+            raise fail(f"room {i}: 'name' must be letters, digits and _ . + -, got {name!r}")
+        if name in [r.name for r in out]:
+            raise fail(f"room {i}: the name {name!r} is taken by another room")
+        shape = room.get("rect", room.get("polygon"))
+        if "rect" in room:
+            ok = isinstance(shape, list) and len(shape) == 4
+            points = (
+                [
+                    [shape[0], shape[1]],
+                    [shape[2], shape[1]],
+                    [shape[2], shape[3]],
+                    [shape[0], shape[3]],
+                ]
+                if ok
+                else []
+            )
+        else:
+            ok = isinstance(shape, list) and len(shape) >= 3
+            points = shape if ok else []
+        ok = ok and all(
+            isinstance(pt, list)
+            and len(pt) == 2
+            and all(
+                not isinstance(v, bool) and isinstance(v, int | float) and _finite(v) for v in pt
+            )
+            for pt in points
+        )
+        if not ok:
+            raise fail(f"room {name!r}: rect must be 4 numbers, polygon 3 or more [x, y] points")
+        poly = np.array(points, dtype=np.float64)
+        if (
+            poly[:, 0].min() < 0
+            or poly[:, 0].max() > width
+            or poly[:, 1].min() < 0
+            or poly[:, 1].max() > height
+        ):
+            raise fail(f"room {name!r} lies outside the {width:g} x {height:g} world")
+        area = 0.5 * abs(
+            np.dot(poly[:, 0], np.roll(poly[:, 1], -1))
+            - np.dot(poly[:, 1], np.roll(poly[:, 0], -1))
+        )
+        if area == 0:
+            raise fail(f"room {name!r} has zero area")
+        out.append(Room(name, poly))
+    return tuple(out)
+
+
+def point_in_polygon(polygon: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Whether each point lies inside ``polygon`` (P, 2), by the even-odd rule: a ray from the
+    point towards +x crosses the boundary an odd number of times. Points on the boundary
+    count as inside (rooms of a plan share their walls)."""
+    inside = np.zeros(np.shape(x), dtype=bool)
+    on_edge = np.zeros(np.shape(x), dtype=bool)
+    for (x0, y0), (x1, y1) in zip(polygon, np.roll(polygon, -1, axis=0), strict=True):
+        crosses = (y0 > y) != (y1 > y)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            at = x0 + (y - y0) * (x1 - x0) / (y1 - y0)  # x where the edge meets the point's row
+        inside ^= crosses & (x < at)
+        cross = (x1 - x0) * (y - y0) - (y1 - y0) * (x - x0)
+        within = (np.minimum(x0, x1) <= x) & (x <= np.maximum(x0, x1))
+        within &= (np.minimum(y0, y1) <= y) & (y <= np.maximum(y0, y1))
+        on_edge |= within & (np.abs(cross) <= 1e-9 * max(1.0, abs(x1 - x0) + abs(y1 - y0)))
+    return inside | on_edge
 
 
 def load_world(spec: str | Path) -> World:
