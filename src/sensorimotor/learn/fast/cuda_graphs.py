@@ -1,11 +1,11 @@
 """Training steps replayed as CUDA graphs, for the data resident on a GPU.
 
 On a GPU these tiny models are bound by kernel launches, not arithmetic: an eager Rec-SM step
-of 64 streams x 20 steps launches a few hundred kernels and takes about 5 ms of host time on
-an H100, the kernels a fraction of that. A CUDA graph records a step's kernels once, reading
-its inputs from fixed buffers; each replay runs the same kernels on the buffers' new contents
-in one launch. Only the launching changes, so the numbers are the eager loop's (tests check
-it); ``autograd.train_epoch_recurrent`` and ``stacked.train_epoch_stacked`` use this on CUDA.
+of 64 streams x 20 steps launches a few hundred kernels, and launching them takes longer than
+running them (the README's speed section has the measurements). A CUDA graph records a
+step's kernels once, reading its inputs from fixed buffers; each replay runs the same kernels
+on the buffers' new contents in one launch. Only the launching changes, so the numbers are the eager loop's (tests check
+it); ``engine.train_epoch_recurrent`` and ``stacked.train_epoch_stacked`` use this on CUDA.
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ def capture(step: Callable[[], None]) -> torch.cuda.CUDAGraph:
 
 @dataclass
 class RecurrentStep:
-    """One truncated-BPTT step of ``autograd.train_epoch_recurrent`` as a graph: inputs x, xm, y
+    """One truncated-BPTT step of ``engine.train_epoch_recurrent`` as a graph: inputs x, xm, y
     (streams, horizon, 5|2|5), the LSTM state (h, c) carried in place from step to step, and
     the epoch's summed squared error ``total``."""
 

@@ -1,9 +1,9 @@
 """Batched products over stacked seeds, each in the orientation the BLAS is fast at.
 
-Each seed has its own matrices: tensors carry a leading seed axis K. The BLAS (MKL here) is
+Each seed has its own matrices: tensors carry a leading seed axis K. A BLAS (MKL) can be
 several times slower on a tall product with few columns, (1280, 128) x (128, 10) say, than on
-its transpose: 2.1 ms against 0.32 for K = 5 on one of our CPUs. So a product narrower than
-``NARROW`` columns is computed as its transpose, and the result is a transposed view; the
+its transpose (``benchmarks/bench_train.py`` measures the whole step). So a product narrower
+than ``NARROW`` columns is computed as its transpose, and the result is a transposed view; the
 caller never sees the difference but in the strides.
 """
 
@@ -32,8 +32,8 @@ def linear(h: torch.Tensor, w: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
 
 def weight_grad(dy: torch.Tensor, h: torch.Tensor, out: torch.Tensor) -> None:
     """out (K, out, in) = dy^T h, for dy (K, B, out) and h (K, B, in). Over a tall B (a
-    recurrent chunk's 1,280 steps) the product with fewer rows is faster (0.69 ms against
-    0.83 for K = 5, in = 32, out = 128), and the copy into out costs little."""
+    recurrent chunk's 1,280 steps) the product with fewer rows is the faster one, and the copy
+    into out costs little."""
     if h.shape[-1] < NARROW <= dy.shape[-1] or (h.shape[-2] >= TALL and h.shape[-1] < dy.shape[-1]):
         out.copy_(torch.bmm(h.mT, dy).mT)
     else:

@@ -25,7 +25,7 @@ its stack (every operation treats the seeds independently; tests check it bit fo
 
 Each product runs in the orientation the BLAS is fast at (``matmul``, ``linear``,
 ``weight_grad``): one with fewer than 16 columns, (64, 128) x (128, 10) say, runs as its
-transpose, up to 6x faster. So a seed's numbers agree with its ``nn.Module`` trained alone with
+transpose (see ``products``). So a seed's numbers agree with its ``nn.Module`` trained alone with
 autograd (``autograd.train_epoch_feedforward``) to float32 rounding, not bit for bit, while they
 stay bit for bit the same in a stack of K as alone (tests check both).
 """

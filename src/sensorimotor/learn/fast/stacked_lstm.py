@@ -171,7 +171,7 @@ class _LayerBuffers:
     cs: torch.Tensor  # (K, T + 1, B, H): c alike
     tc: torch.Tensor  # (K, T, B, H): tanh(c_t)
     arrays: tuple  # numpy views of act, hs, cs, tc for the kernels
-    h_steps: list[torch.Tensor]  # hs[:, t] for every t: views made once (a view costs 2 us)
+    h_steps: list[torch.Tensor]  # hs[:, t] for every t: views made once, not per step
 
 
 @dataclass
