@@ -166,12 +166,16 @@ def _parse_seeds(text: str) -> list[int]:
     return check_seeds(values)
 
 
-def _autograd_note(model: str) -> str:
-    """What the training header adds when the model trains with autograd (an edited models.py)."""
+def _engine_note(model: str, device: str, single: bool) -> str:
+    """How the training header says the seeds train: stacked, or each with autograd (and
+    why, where ``models.py`` was edited into a model the stacked passes do not compute)."""
     from sensorimotor.learn.fast.stacked_engine import computes_models_py
+    from sensorimotor.learn.train import trains_stacked
 
+    if trains_stacked(model, device):
+        return "" if single else ", stacked"
     if computes_models_py(model):
-        return ""
+        return ", with autograd"
     return f", with autograd: models.py's {model} is not what the stacked passes compute"
 
 
@@ -194,23 +198,15 @@ def _train(model, data: Path, out: Path, config, seeds: list[int], note: str, re
     """`train`: one run folder (OUT itself with --seed; one per seed under OUT with --seeds),
     a line per seed and epoch, a line per finished run."""
     from sensorimotor.learn.models import MODEL_NAMES
-    from sensorimotor.learn.train import train, train_seeds, trains_stacked
+    from sensorimotor.learn.train import train, train_seeds
 
     started: list[bool] = []
 
     def on_epoch(seed, r, stopper) -> None:
         if not started:  # the header waits for the first epoch: input errors stay one line
             started.append(True)
-            how = (
-                ""
-                if single
-                else ", "
-                + ("stacked" if trains_stacked(model, config.device) else "one after another")
-            )
-            err_console.print(
-                f"training {MODEL_NAMES[model]} on {data} ({note}{how}{_autograd_note(model)}) "
-                f"-> {out}"
-            )
+            how = _engine_note(model, config.device, single)
+            err_console.print(f"training {MODEL_NAMES[model]} on {data} ({note}{how}) -> {out}")
         err_console.print(epoch_line(r, stopper, None if single else seed, config.max_minutes))
 
     if single:
@@ -236,11 +232,10 @@ def evaluate(
     ] = None,
 ) -> None:
     """Test-split prediction error of a trained model on one or more databases, with baselines."""
-    import json
 
     from rich.table import Table
 
-    from sensorimotor.files import check_writable, write_text_atomic
+    from sensorimotor.files import check_writable, write_json_atomic
     from sensorimotor.learn.evaluate import evaluate_run, load_run
     from sensorimotor.learn.models import MODEL_NAMES
     from sensorimotor.sim.database import load_database
@@ -260,7 +255,7 @@ def evaluate(
         table.add_row(world, f"{err:.5f}", f"{b['mean']:.5f}", f"{b['copy_last']:.5f}")
     Console().print(table)
     if json_out is not None:
-        write_text_atomic(json_out, json.dumps(res, indent=2))
+        write_json_atomic(json_out, res)
 
 
 @app.command()
@@ -272,12 +267,11 @@ def table(
     ] = None,
 ) -> None:
     """Table I: rows = models, columns = test worlds, mean +- sd over seeds, the paper beside."""
-    import json
 
     from rich.table import Table
 
     from sensorimotor.analysis.tables import PAPER_TABLE_I, build_table, fmt_cell
-    from sensorimotor.files import check_writable, write_text_atomic
+    from sensorimotor.files import check_writable, write_json_atomic
     from sensorimotor.learn.evaluate import load_run
     from sensorimotor.sim.database import load_database
 
@@ -318,7 +312,7 @@ def table(
         t.add_row(*cells)
         Console(width=max(100, Console().width)).print(t)
     if json_out is not None:
-        write_text_atomic(json_out, json.dumps(result, indent=2))
+        write_json_atomic(json_out, result)
 
 
 def _save_plot(fig, out: Path, svg: bool) -> None:

@@ -12,7 +12,6 @@ clusters on the world they were fitted on).
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -25,7 +24,7 @@ from sensorimotor.analysis.representation import (
     raw_representation,
 )
 from sensorimotor.errors import InputError
-from sensorimotor.files import atomic_path, check_writable, write_text_atomic
+from sensorimotor.files import atomic_path, check_writable, write_json_atomic
 from sensorimotor.sim.core import read_sensors
 from sensorimotor.sim.database import Database, load_database
 from sensorimotor.version import __version__
@@ -192,7 +191,7 @@ def analyze_files(
         )
     files.append(arrays)
     path = out / "metrics.json"
-    write_text_atomic(path, json.dumps(metrics, indent=2) + "\n")
+    write_json_atomic(path, metrics)
     files.append(path)
     for stale in set(OUTPUTS) - {f.name for f in files}:  # an earlier analysis' in this folder
         (out / stale).unlink(missing_ok=True)

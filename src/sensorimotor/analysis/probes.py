@@ -32,7 +32,8 @@ def probe_r2(z: np.ndarray, target: np.ndarray, seed: int = 0, alpha: float = RI
     The steps are split at random (``seed``) into a fitting half and a scoring half; features are
     standardised on the fitting half. 1 means the target is a linear function of ``z``; a
     representation that knows nothing of it scores about 0 (below 0 when the probe overfits).
-    NaN with fewer than 4 steps.
+    NaN with fewer than 4 steps, or where the target is constant on either half (every
+    prediction would score 1 or 0 there: R^2 says nothing of a target that does not vary).
     """
     z = check_z(z)
     target = np.asarray(target, dtype=np.float64)
@@ -41,6 +42,8 @@ def probe_r2(z: np.ndarray, target: np.ndarray, seed: int = 0, alpha: float = RI
     if len(z) < 4:
         return float("nan")
     fit, score = _halves(len(z), seed)
+    if np.ptp(target[fit]) == 0 or np.ptp(target[score]) == 0:
+        return float("nan")
     probe = make_pipeline(StandardScaler(), Ridge(alpha=alpha)).fit(z[fit], target[fit])
     return float(r2_score(target[score], probe.predict(z[score])))
 
@@ -134,7 +137,8 @@ def position_scores(
         "cos_heading": np.cos(poses[:, 2]),
         "sin_heading": np.sin(poses[:, 2]),
     }
-    out = {f"r2_{name}": probe_r2(z, t, seed) for name, t in targets.items()}
+    r2 = {f"r2_{name}": probe_r2(z, t, seed) for name, t in targets.items()}
+    out: dict = {k: None if np.isnan(v) else v for k, v in r2.items()}  # n/a: JSON null
     knn = knn_mse(z, poses, world_size, seed=seed)
     out.update(
         knn_mse=knn["knn_mse"],

@@ -7,7 +7,6 @@ the whole split from a zero state, carrying it, as an agent would online.
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -17,6 +16,7 @@ import numpy as np
 import torch
 
 from sensorimotor.errors import InputError
+from sensorimotor.files import read_json
 from sensorimotor.learn.models import ModelConfig, SensorimotorEncoder, build_model
 from sensorimotor.learn.runs import load_weights_into, torch_load
 from sensorimotor.sim.database import Database, as_database, scale_motors, scale_sensors
@@ -100,8 +100,8 @@ def load_run(run_dir: str | Path, device: str | torch.device = "cpu") -> Run:
     cfg_path, weights = run_dir / "config.json", run_dir / "model.pt"
     if not cfg_path.is_file():
         raise InputError(f"{cfg_path}: missing (not a run folder made by `sensorimotor train`)")
+    config = read_json(cfg_path, "run config")
     try:
-        config = json.loads(cfg_path.read_text())
         model_config = ModelConfig(
             **{**config["model"], "ff_hidden": tuple(config["model"]["ff_hidden"])}
         )
@@ -112,8 +112,6 @@ def load_run(run_dir: str | Path, device: str | torch.device = "cpu") -> Run:
             raise TypeError("'train' is not a table")
     except (ValueError, KeyError, TypeError, AttributeError) as err:
         raise InputError(f"{cfg_path}: corrupt run config ({err})") from None
-    except OSError as err:
-        raise InputError(f"{cfg_path}: cannot read the run config ({err.strerror})") from None
     if weights.exists() and not weights.is_file():
         raise InputError(f"{weights}: is not a file")
     if not weights.is_file():

@@ -36,6 +36,9 @@ MODEL_NAMES = {
 State = tuple[torch.Tensor, torch.Tensor] | None  # LSTM (h, c), each (layers, B, 32); None = zero
 
 
+MAX_WIDTH = 4096  # units of any one layer: far beyond these models, within any memory
+
+
 @dataclass(frozen=True)
 class ModelConfig:
     """Sizes of one encoder; the defaults are the paper's."""
@@ -62,9 +65,18 @@ class ModelConfig:
     """The prediction subnetwork's one hidden layer."""
 
     def __post_init__(self) -> None:
+        """Refuse an unknown kind, and sizes that are not integers in 1..MAX_WIDTH (a
+        hand-edited config.json would otherwise fail deep inside torch, or exhaust memory)."""
         if self.kind not in MODEL_KINDS:
             raise ValueError(f"unknown model {self.kind!r}: use one of {', '.join(MODEL_KINDS)}")
         object.__setattr__(self, "ff_hidden", tuple(self.ff_hidden))
+        sizes = {k: v for k, v in asdict(self).items() if k not in ("kind", "ff_hidden")}
+        sizes |= {f"ff_hidden[{i}]": v for i, v in enumerate(self.ff_hidden)}
+        if not self.ff_hidden or len(self.ff_hidden) > 16:
+            raise ValueError(f"ff_hidden must hold 1 to 16 layer sizes, got {self.ff_hidden!r}")
+        for name, v in sizes.items():
+            if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= MAX_WIDTH:
+                raise ValueError(f"{name} must be an integer in 1..{MAX_WIDTH}, got {v!r}")
 
     @property
     def recurrent(self) -> bool:

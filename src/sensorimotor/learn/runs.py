@@ -10,12 +10,14 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import math
 import numbers
+import shutil
 import warnings
 import zipfile
 import zlib
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -23,7 +25,15 @@ from typing import TYPE_CHECKING
 import torch
 
 from sensorimotor.errors import InputError
-from sensorimotor.files import atomic_path, check_writable, file_hash
+from sensorimotor.files import (
+    atomic_path,
+    check_input,
+    check_writable,
+    file_hash,
+    folder_lock,
+    read_json,
+    write_json_atomic,
+)
 from sensorimotor.files import write_text_atomic as _write_text
 from sensorimotor.learn.models import MODEL_KINDS, ModelConfig
 from sensorimotor.sim.core import MAX_SEED
@@ -188,6 +198,7 @@ def torch_load(path: Path, device: str | torch.device = "cpu"):
     """``torch.load(weights_only=True)`` of a file this package wrote, checked first: torch does
     not test its archive's CRCs, so a flipped byte would load as wrong weights. InputError
     naming the file on any damage; load the result into a model with ``load_weights_into``."""
+    check_input(path, "checkpoint")
     check_archive(path)
     try:
         with warnings.catch_warnings():  # torch's advice to load unsafely is not for our users
@@ -273,19 +284,30 @@ def check_run_dir(out: Path, meta: dict, resume: bool) -> None:
     for name in RUN_FILES if out.is_dir() else []:  # before anything is written, not midway
         check_writable(out / name)
     cfg_path = out / "config.json"
-    if cfg_path.exists() and not resume:
+    present = [name for name in RUN_FILES if (out / name).exists()]
+    if present and not resume:
         raise InputError(
             f"{out}: already holds a run; pass --resume to continue it, or another --out"
         )
+    if resume and present and not cfg_path.exists():
+        raise InputError(
+            f"{out}: holds {', '.join(present)} but no config.json, so what it was trained on is "
+            "unknown; refusing to resume into it (move it away, or use another --out)"
+        )
+    trained = [name for name in ("model.pt", "result.json") if (out / name).exists()]
+    if resume and trained and not (out / "checkpoint.pt").exists():
+        raise InputError(
+            f"{out}: checkpoint.pt is missing; resuming would start again at epoch 0 and replace "
+            f"the trained {' and '.join(trained)} (move the run away, or use another --out)"
+        )
     if resume and cfg_path.exists():
-        try:
-            old = json.loads(cfg_path.read_text())
-            if not all(isinstance(old.get(k), dict) for k in ("model", "train", "data")):
-                raise ValueError("missing its model, train or data table")
-        except (ValueError, AttributeError) as err:
-            raise InputError(f"{cfg_path}: corrupt run config ({err})") from None
-        except OSError as err:
-            raise InputError(f"{cfg_path}: cannot read the run config ({err.strerror})") from None
+        old = read_json(cfg_path, "run config")
+        if not isinstance(old, dict) or not all(
+            isinstance(old.get(k), dict) for k in ("model", "train", "data")
+        ):
+            raise InputError(
+                f"{cfg_path}: corrupt run config (missing its model, train or data table)"
+            )
         was = old["data"]
         if was.get("sha256") != meta["data"]["sha256"]:
             raise InputError(
@@ -305,6 +327,26 @@ def check_run_dir(out: Path, meta: dict, resume: bool) -> None:
             check_archive(out / "checkpoint.pt")  # before the run's config is rewritten
 
 
+@contextmanager
+def lock_run_dir(out: Path) -> Iterator[None]:
+    """Hold ``out``'s lock while a process trains into it (a second process is refused at
+    once); a folder made here and left empty by a refusal is removed again."""
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: exists and is not a folder")
+    made = not out.exists()
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise InputError(f"{out}: cannot create run folder ({err.strerror})") from None
+    try:
+        with folder_lock(out, "run folder"):
+            yield
+    except BaseException:
+        if made and all(p.name == ".lock" for p in out.iterdir()):
+            shutil.rmtree(out, ignore_errors=True)
+        raise
+
+
 def setting_changes(a: dict, b: dict, ignore: tuple[str, ...] = ()) -> str:
     """``key: a -> b`` for each setting in which two configs differ, but those in ``ignore``;
     empty if none."""
@@ -318,7 +360,7 @@ def open_run_dir(out: Path, meta: dict) -> None:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise InputError(f"{out}: cannot create run folder ({err.strerror})") from None
-    _write_text(out / "config.json", json.dumps(meta, indent=2))
+    write_json_atomic(out / "config.json", meta)
 
 
 def load_checkpoint(
@@ -332,12 +374,49 @@ def load_checkpoint(
         raise InputError(f"{ckpt_path}: corrupt checkpoint (no model weights in it)")
     load_weights_into(model, ckpt["model"], ckpt_path)
     try:
+        stopper, history, epoch, seconds = _checked_progress(ckpt)
+        _check_moments(ckpt["optimizer"], opt)
         opt.load_state_dict(ckpt["optimizer"])
-        stopper = EarlyStopping(**ckpt["stopper"])
-        history = [EpochRecord(**r) for r in ckpt["history"]]
-        return stopper, history, ckpt["epoch"] + 1, ckpt["seconds"]
     except Exception as err:
         raise InputError(f"{ckpt_path}: corrupt checkpoint ({_first_lines(err)})") from None
+    return stopper, history, epoch + 1, seconds
+
+
+def _checked_progress(ckpt: dict) -> tuple[EarlyStopping, list[EpochRecord], int, float]:
+    """A checkpoint's epoch, seconds, early stopping and history, each within its range and
+    consistent with the others (a hand-edited checkpoint is not trusted field by field)."""
+    epoch, seconds = ckpt["epoch"], ckpt["seconds"]
+    if isinstance(epoch, bool) or not isinstance(epoch, int) or epoch < 0:
+        raise ValueError(f"epoch must be an integer >= 0, got {epoch!r}")
+    if not isinstance(seconds, int | float) or not math.isfinite(seconds) or seconds < 0:
+        raise ValueError(f"seconds must be a finite number >= 0, got {seconds!r}")
+    stopper = EarlyStopping(**ckpt["stopper"])
+    for name in ("patience", "waited", "best_epoch"):
+        if not isinstance(getattr(stopper, name), int) or getattr(stopper, name) < -1:
+            raise ValueError(f"stopper.{name} is {getattr(stopper, name)!r}")
+    history = [EpochRecord(**r) for r in ckpt["history"]]
+    if [r.epoch for r in history] != list(range(epoch + 1)):
+        raise ValueError(f"its history does not hold epochs 0..{epoch} in order")
+    for r in history:
+        numbers = (r.train_error, r.val_error, r.seconds, r.samples_per_s, r.elapsed)
+        if not all(isinstance(v, int | float) and math.isfinite(v) for v in numbers):
+            raise ValueError(f"history of epoch {r.epoch} holds a value that is not a number")
+    return stopper, history, epoch, float(seconds)
+
+
+def _check_moments(state: dict, opt: FusedAdam) -> None:
+    """Adam's moments: one finite tensor per parameter, of its shape (a wrong shape would
+    broadcast silently and train on nonsense)."""
+    for name in ("exp_avg", "exp_avg_sq", "steps"):
+        tensors = state[name]
+        if not isinstance(tensors, list) or len(tensors) != len(opt.params):
+            raise ValueError(f"optimizer.{name} must hold {len(opt.params)} tensors")
+        for i, (t, p) in enumerate(zip(tensors, opt.params, strict=True)):
+            shape = () if name == "steps" else p.shape
+            if not isinstance(t, torch.Tensor) or t.shape != shape or not torch.isfinite(t).all():
+                raise ValueError(
+                    f"optimizer.{name}[{i}] is not a finite tensor of shape {tuple(shape)}"
+                )
 
 
 def stored_result(out: Path, history: list[EpochRecord]) -> TrainResult | None:
@@ -347,10 +426,10 @@ def stored_result(out: Path, history: list[EpochRecord]) -> TrainResult | None:
     if not result_path.exists():
         return None
     try:
-        res = json.loads(result_path.read_text())
+        res = read_json(result_path, "run result")
         if res["stopped"] != "early stopping":
             return None
-    except (ValueError, KeyError, TypeError):
+    except (InputError, KeyError, TypeError):
         return None  # unreadable: the checkpoint decides (the run goes on from it)
     return TrainResult(
         out,
@@ -396,17 +475,14 @@ def finish_run(
     result = TrainResult(
         out, stopper.best_epoch, stopper.lowest, len(history), stopped, elapsed, history
     )
-    _write_text(
+    write_json_atomic(
         out / "result.json",
-        json.dumps(
-            {
-                "best_epoch": result.best_epoch,
-                "best_val_error": result.best_val_error,
-                "epochs": result.epochs,
-                "stopped": stopped,
-                "seconds": elapsed,
-            },
-            indent=2,
-        ),
+        {
+            "best_epoch": result.best_epoch,
+            "best_val_error": result.best_val_error,
+            "epochs": result.epochs,
+            "stopped": stopped,
+            "seconds": elapsed,
+        },
     )
     return result

@@ -10,6 +10,8 @@ several. What a run folder holds is in ``runs``.
 
 from __future__ import annotations
 
+import contextlib
+import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
@@ -33,6 +35,7 @@ from sensorimotor.learn.runs import (
     check_run_dir,
     finish_run,
     load_checkpoint,
+    lock_run_dir,
     open_run_dir,
     run_meta,
     run_name,
@@ -148,9 +151,8 @@ def train_runs(
     split_of = [files.index(p) for p in paths]
     device = resolve_device(config.device)
     config = replace(config, device=device)
-    model_config = ModelConfig(kind=config.model)
-    engine_type = StackedEngine if trains_stacked(config.model, device) else AutogradEngine
-    if engine_type is StackedEngine and model_config.recurrent and len(files) > 1:
+    stacked = trains_stacked(config.model, device)
+    if stacked and ModelConfig(kind=config.model).recurrent and len(files) > 1:
         raise ValueError("a recurrent stack trains on one database")
     seeds = [int(seed) for seed, _ in runs]
     for f in files or [None]:  # at least one seed, and distinct ones on each database
@@ -163,30 +165,44 @@ def train_runs(
         check_trainable(db, config)
     if len({len(db.take("train")) for db in dbs}) > 1:
         raise ValueError("databases trained together must have train splits of one length")
-    sha: dict[int, str] = {}
-    metas = []
-    for seed, out, w in zip(seeds, outs, split_of, strict=True):
-        meta = run_meta(files[w], dbs[w], replace(config, seed=seed), sha.get(w))
-        sha[w] = meta["data"]["sha256"]
-        check_run_dir(out, meta, resume)  # every folder checked before any is written
-        metas.append(meta)
-    for out, meta in zip(outs, metas, strict=True):
-        open_run_dir(out, meta)
+    with contextlib.ExitStack() as locks:
+        sha: dict[int, str] = {}
+        metas = []
+        for seed, out, w in zip(seeds, outs, split_of, strict=True):
+            meta = run_meta(files[w], dbs[w], replace(config, seed=seed), sha.get(w))
+            sha[w] = meta["data"]["sha256"]
+            locks.enter_context(lock_run_dir(out))  # one process writes a run folder
+            check_run_dir(out, meta, resume)  # every folder checked before any is written
+            metas.append(meta)
+        state = state_of(outs, seeds, split_of, config, resume)  # checkpoints checked first
+        for out, meta in zip(outs, metas, strict=True):
+            open_run_dir(out, meta)
+        return _epochs(dbs, state, config, on_epoch)
 
-    torch.set_num_threads(config.threads)
-    keep_freed_memory()
+
+def state_of(outs, seeds, split_of, config: TrainConfig, resume: bool) -> list[_Run]:
+    """Each run's model, optimiser and early stopping, from its checkpoint where resumed."""
+    model_config = ModelConfig(kind=config.model)
     state: list[_Run] = []
     for i, (seed, out, w) in enumerate(zip(seeds, outs, split_of, strict=True)):
-        model = build_model(model_config, seed=seed).to(device)
+        model = build_model(model_config, seed=seed).to(config.device)
         member = Member(seed, w, model, FusedAdam(model.parameters(), lr=config.lr))
         run = _Run(i, out, member, EarlyStopping(config.patience, config.min_ratio))
         if resume and (out / "checkpoint.pt").exists():
             run.stopper, run.history, run.epoch, run.elapsed = load_checkpoint(
-                out, device, model, member.opt
+                out, config.device, model, member.opt
             )
             run.result = stored_result(out, run.history)
         state.append(run)
+    return state
 
+
+def _epochs(dbs, state: list[_Run], config: TrainConfig, on_epoch) -> list[TrainResult]:
+    """The epochs of every run in ``state``, their folders open and locked."""
+    device = config.device
+    torch.set_num_threads(config.threads)
+    keep_freed_memory()
+    engine_type = StackedEngine if trains_stacked(config.model, device) else AutogradEngine
     train_splits = [split_tensors(db, "train", device) for db in dbs]
     if len(dbs) == 1:
         s, m = train_splits[0]
@@ -211,6 +227,7 @@ def train_runs(
         seconds = time.perf_counter() - t0  # training alone: the record's samples/s
         val_errors = engine.val_errors()
         engine_seconds = time.perf_counter() - t0  # charged to each seed, as its epoch's time
+        _check_finite(members, epoch, train_errors, val_errors)
         for k, run in enumerate(members):
             t1 = time.perf_counter()
             improved, best = run.stopper.update(epoch, val_errors[k])
@@ -232,6 +249,18 @@ def train_runs(
             if on_epoch is not None:
                 on_epoch(run.index, record, run.stopper)
     return [run.result for run in state]
+
+
+def _check_finite(members: list[_Run], epoch: int, train_errors, val_errors) -> None:
+    """Stop with one line when a seed's errors are no longer numbers: its folder keeps the
+    last epoch that was (nothing of this epoch is saved)."""
+    for k, run in enumerate(members):
+        if not (math.isfinite(train_errors[k]) and math.isfinite(val_errors[k])):
+            raise InputError(
+                f"{run.out}: training diverged at epoch {epoch} (train error "
+                f"{train_errors[k]}, validation error {val_errors[k]}); the run folder keeps "
+                f"epoch {epoch - 1} and before. Look for extreme values in the database"
+            )
 
 
 def _drop_finished(

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import base64
 import html
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,7 +16,7 @@ import numpy as np
 
 from sensorimotor.analysis.claims import claim_numbers, cluster_f1, fmt_ms, paper_claims
 from sensorimotor.analysis.tables import PAPER_TABLE_I, fmt_cell
-from sensorimotor.files import write_text_atomic
+from sensorimotor.files import read_json, write_json_atomic, write_text_atomic
 from sensorimotor.learn.models import MODEL_KINDS, MODEL_NAMES
 
 PCA_ORDER = ("raw", "s", "rec-s", "sm", "rec-sm")  # the panels of paper Fig. 4, left to right
@@ -173,16 +172,9 @@ def _figures(rep) -> dict[str, Path]:
     return figs
 
 
-def write_report(rep, argv: list[str], hardware: dict) -> tuple[Path, Path]:
-    """Write ``report.md`` and ``report.html`` into ``rep.out``."""
-    import time
-
-    t0 = time.perf_counter()
-    figs = _figures(rep)
-    figure_seconds = time.perf_counter() - t0
-    out = rep.out
-    worlds = list(rep.worlds)  # trained on; every model is tested on all of rep.data
-    b: list[Block] = [h(1, "sensorimotor: reproduction report")]
+def _settings(rep, argv: list[str], hardware: dict) -> list[Block]:
+    """The title, the command and what it ran with."""
+    b = [h(1, "sensorimotor: reproduction report")]
     b.append(
         p(
             "Kulak & Garcia Ortiz, *Representation Learning in Partially Observable Environments using "
@@ -223,6 +215,12 @@ def write_report(rep, argv: list[str], hardware: dict) -> tuple[Path, Path]:
             ],
         )
     )
+    return b
+
+
+def _timings(rep, figure_seconds: float) -> list[Block]:
+    """Wall time of each stage of this invocation."""
+    b: list[Block] = []
     rows = []
     for stage, t in rep.timings.items():
         if stage == "total":
@@ -242,10 +240,16 @@ def write_report(rep, argv: list[str], hardware: dict) -> tuple[Path, Path]:
         ),
         table(["stage", "seconds", "jobs"], rows),
     ]
+    return b
+
+
+def _trainings(rep) -> list[Block]:
+    """Each run's training: epochs, best epoch and error, why it stopped, seconds."""
+    b: list[Block] = []
     rows = []
     total_train = 0.0
     for world, kind, seed in rep.runs:
-        res = json.loads((rep.run_dir(world, kind, seed) / "result.json").read_text())
+        res = read_json(rep.run_dir(world, kind, seed) / "result.json", "run result")
         total_train += res["seconds"]
         rows.append(
             [
@@ -262,7 +266,12 @@ def write_report(rep, argv: list[str], hardware: dict) -> tuple[Path, Path]:
         h(3, "Training of each run (when it was trained; one thread each)"),
         table(["run", "epochs", "best epoch", "best val error", "stopped by", "seconds"], rows),
     ]
+    return b
 
+
+def _simulator(figs: dict[str, Path]) -> list[Block]:
+    """The paper's Figs. 1-3."""
+    b: list[Block] = []
     b.append(h(2, "Worlds, behaviour and perception (paper Figs. 1-3)"))
     b.append(image(figs["worlds"], "The three worlds (Fig. 1)"))
     b.append(
@@ -274,7 +283,12 @@ def write_report(rep, argv: list[str], hardware: dict) -> tuple[Path, Path]:
             "What the agent perceives in the five situations, picked from the Rooms1 database by pose (Fig. 3)",
         )
     )
+    return b
 
+
+def _table_one(rep) -> list[Block]:
+    """Table I for each training world, the baselines, the ordering, the paper beside."""
+    b: list[Block] = []
     b.append(h(2, "Table I: sensorimotor prediction error"))
     b.append(
         p(
@@ -313,8 +327,12 @@ def write_report(rep, argv: list[str], hardware: dict) -> tuple[Path, Path]:
         b += [h(3, f"Trained on {trained_on}"), table(header, body)]
         if trained_on == "square":
             b.append(p(paper_agreement(rows_t, t["worlds"])))
+    return b
 
-    numbers = claim_numbers(rep.analyses, rep.runs, worlds)
+
+def _inside(rep, figs: dict[str, Path], numbers: dict, worlds: list[str]) -> list[Block]:
+    """What the representations contain: event F1, memory, position, PCA (Figs. 4-9)."""
+    b: list[Block] = []
     b.append(h(2, "Inside the representations (paper Figs. 4-9)"))
     b.append(
         p(
@@ -374,7 +392,12 @@ def write_report(rep, argv: list[str], hardware: dict) -> tuple[Path, Path]:
                 f"PCA of z_s on {world}, coloured by the smallest reading (Fig. 4; seed 0)",
             )
         )
+    return b
 
+
+def _maps(rep) -> list[Block]:
+    """The cluster maps of seed 0, and the transfer of clusters between worlds."""
+    b: list[Block] = []
     b.append(h(3, "Cluster maps (seed 0): 500 steps of each cluster, arrows at true pose"))
     shown = [
         ("raw", "square"),
@@ -387,7 +410,7 @@ def write_report(rep, argv: list[str], hardware: dict) -> tuple[Path, Path]:
     ]
     for kind, world in shown:
         name = f"raw__{world}" if kind == "raw" else f"{world}__{kind}__s0"
-        path = out / "analysis" / name / "clusters.png"
+        path = rep.out / "analysis" / name / "clusters.png"
         if path.exists():
             b.append(image(path, f"{LABEL[kind]} trained on {world}: the 20 clusters"))
 
@@ -413,26 +436,52 @@ def write_report(rep, argv: list[str], hardware: dict) -> tuple[Path, Path]:
         body.append(cells)
     b.append(table(["fitted → applied", "corner F1", "wall-end F1", "nothing F1"], body))
     for name in rep.transfers:
-        path = out / "transfer" / name / "clusters.png"
+        path = rep.out / "transfer" / name / "clusters.png"
         b.append(
             image(
                 path,
                 f"{name.replace('__', ' ')}: clusters fitted on the training world drawn on the other",
             )
         )
+    return b
 
+
+def _claims(rep, numbers: dict) -> tuple[list[Block], list]:
+    """The paper's claims, each with its numbers and verdict."""
+    b: list[Block] = []
     b.append(h(2, "The paper's claims, tested"))
     rows_c = [
         [c, nums, "supported" if ok else ("not supported" if ok is not None else "n/a")]
         for c, nums, ok in paper_claims(rep, numbers)
     ]
     b.append(table(["claim", "numbers", "verdict"], rows_c))
+    return b, rows_c
 
+
+def write_report(rep, argv: list[str], hardware: dict) -> tuple[Path, Path]:
+    """Write ``report.md``, ``report.html`` and ``claims.json`` into ``rep.out``."""
+    import time
+
+    t0 = time.perf_counter()
+    figs = _figures(rep)
+    figure_seconds = time.perf_counter() - t0
+    out = rep.out
+    worlds = list(rep.worlds)  # trained on; every model is tested on all of rep.data
+    numbers = claim_numbers(rep.analyses, rep.runs, worlds)
+    claims, rows_c = _claims(rep, numbers)
+    b = [
+        *_settings(rep, argv, hardware),
+        *_timings(rep, figure_seconds),
+        *_trainings(rep),
+        *_simulator(figs),
+        *_table_one(rep),
+        *_inside(rep, figs, numbers, worlds),
+        *_maps(rep),
+        *claims,
+    ]
     md = to_markdown(b, out)
     page = to_html(b, "sensorimotor reproduction report")
     write_text_atomic(out / "report.md", md)
     write_text_atomic(out / "report.html", page)
-    write_text_atomic(
-        out / "claims.json", json.dumps({"numbers": numbers, "claims": rows_c}, indent=2)
-    )
+    write_json_atomic(out / "claims.json", {"numbers": numbers, "claims": rows_c})
     return out / "report.md", out / "report.html"

@@ -24,7 +24,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from sensorimotor.errors import InputError
-from sensorimotor.files import file_hash, write_text_atomic
+from sensorimotor.files import file_hash, write_json_atomic
 from sensorimotor.learn.models import MODEL_KINDS
 from sensorimotor.learn.runs import count
 from sensorimotor.report.workers import Job, default_workers, report, run_jobs
@@ -89,7 +89,7 @@ def _read_key(path: Path) -> str | None:
 
 
 def _write_json(path: Path, obj) -> None:
-    write_text_atomic(path, json.dumps(obj, indent=2) + "\n")
+    write_json_atomic(path, obj)
 
 
 # --- jobs (top-level functions: they run in worker processes) --------------------------------
@@ -361,6 +361,41 @@ def _count(rep: Reproduction, stage: str, run: int, kept: int, overlapped: dict)
     rep.timings[stage] = {"jobs": run, "cached": kept - during, "during_training": during}
 
 
+def _training_jobs(rep: Reproduction, data_hash: dict[str, str]):
+    """The jobs that train what is not kept: (jobs, each job's runs by name, trainings).
+
+    One job is one ``train.train_runs`` call: on the stacked engine, every seed of S (or SM)
+    of all worlds at once, and every seed of Rec-S (or Rec-SM) of one world (a recurrent
+    stack shares its batches); otherwise one job a run."""
+    from sensorimotor.learn.train import trains_stacked
+
+    groups: dict[tuple, list] = {}  # the runs of one job: (world, model, seed, entry)
+    for world in rep.worlds:
+        for model in MODEL_KINDS:
+            for seed in range(rep.seeds):
+                rep.runs.append((world, model, seed))
+                run = rep.run_dir(world, model, seed)
+                done = (run / "result.json").exists()
+                config = _train_config(rep.scale, model, rep.device, seed)
+                if done and run_matches(run, data_hash[world], config):
+                    continue
+                if not trains_stacked(model, rep.device):
+                    key = (model, world, seed)
+                elif model.startswith("rec"):
+                    key = (model, world)
+                else:
+                    key = (model,)
+                entry = (str(rep.data[world]), seed, str(run), data_hash[world])
+                groups.setdefault(key, []).append((world, model, seed, entry))
+    jobs, trains = [], {}
+    for (model, *_), runs in groups.items():
+        name = _stack_name(model, [(world, seed) for world, _, seed, _ in runs])
+        config = _train_config(rep.scale, model, rep.device)
+        jobs.append(Job(name, _train_job, ([entry for *_, entry in runs], config)))
+        trains[name] = [(world, model, seed) for world, model, seed, _ in runs]
+    return jobs, trains, sum(len(runs) for runs in groups.values())
+
+
 def reproduce(
     out: str | Path,
     scale: str = "quick",
@@ -422,34 +457,7 @@ def reproduce(
         from sensorimotor.learn.fast.stacked_engine import computes_models_py
         from sensorimotor.learn.train import trains_stacked
 
-        jobs, n_train = [], 0
-        trains: dict[str, list[tuple[str, str, int]]] = {}  # job name -> the runs it trains
-        stacks: dict[tuple, list] = {}  # (model,) or (model, world) -> runs of one stacked job
-        for world in rep.worlds:
-            for model in MODEL_KINDS:
-                for seed in range(seeds):
-                    rep.runs.append((world, model, seed))
-                    config = _train_config(sc, model, device, seed)
-                    run = rep.run_dir(world, model, seed)
-                    done = (run / "result.json").exists()
-                    if done and run_matches(run, data_hash[world], config):
-                        continue
-                    n_train += 1
-                    if trains_stacked(model, device):
-                        # a recurrent stack shares its batches: one world; S and SM: all
-                        key = (model, world) if model.startswith("rec") else (model,)
-                        entry = (str(rep.data[world]), seed, str(run), data_hash[world])
-                        stacks.setdefault(key, []).append((world, entry))
-                        continue
-                    entry = (str(rep.data[world]), seed, str(run), data_hash[world])
-                    config = _train_config(sc, model, device)
-                    jobs.append(Job(run.name, _train_job, ([entry], config)))
-                    trains[run.name] = [(world, model, seed)]
-        for (model, *_), stack in stacks.items():
-            name = _stack_name(model, [(world, sd) for world, (_, sd, _, _) in stack])
-            config = _train_config(sc, model, device)
-            jobs.append(Job(name, _train_job, ([e for _, e in stack], config)))
-            trains[name] = [(world, model, sd) for world, (_, sd, _, _) in stack]
+        jobs, trains, n_train = _training_jobs(rep, data_hash)
         # longest first, so that the workers finish closer together
         jobs.sort(key=lambda job: -sum(SEED_COST[model] for _, model, _ in trains[job.name]))
         n_jobs = len(jobs)

@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from sensorimotor.errors import InputError
-from sensorimotor.files import atomic_path
-from sensorimotor.sim.core import DEFAULT_LAYOUT, SensorLayout, rollout
+from sensorimotor.files import atomic_path, check_input
+from sensorimotor.sim.core import DEFAULT_LAYOUT, SensorLayout, read_sensors, rollout
 from sensorimotor.sim.world import World, check_builtin_name, world_from_dict
 from sensorimotor.version import __version__
 
@@ -191,11 +191,7 @@ def save_database(db: Database, path: str | Path) -> Path:
 
 def load_database(path: str | Path) -> Database:
     """Read and check a database; any problem is an InputError naming the file."""
-    path = Path(path)
-    if not path.exists():
-        raise InputError(f"{path}: database not found")
-    if path.is_dir():
-        raise InputError(f"{path}: is a folder, not a database (.npz)")
+    path = check_input(path, "database (.npz)")
     try:
         # our own file handle: np.load leaks its own when a damaged zip makes it raise
         with open(path, "rb") as f:
@@ -271,6 +267,40 @@ def _check_in_world(db: Database, world: World) -> None:
         raise InputError(
             f"{path}: sensors row {row} {s[row].tolist()} is outside [0, {max_range:g}] "
             "(meta.sensor_layout.max_range)"
+        )
+    d, r, heading = db.motors[:, 0], db.motors[:, 1], db.poses[:, 2]
+    for name, bad, allowed in (
+        ("motors (d)", np.abs(d) > max(world.width, world.height), "a step longer than the world"),
+        ("motors (r)", np.abs(r) > 2 * math.pi + 1e-3, "a turn of more than a full turn"),
+        ("poses (heading)", np.abs(heading) > math.pi + 1e-3, "a heading outside [-pi, pi]"),
+    ):
+        if bad.any():
+            row = int(np.argmax(bad))
+            raise InputError(f"{path}: {name} of row {row} is out of range ({allowed})")
+    _check_readings_match_world(db, world)
+
+
+READINGS_CHECKED = 2_000  # rows ray-cast again to check that the readings are the world's
+READINGS_TOLERANCE = 0.05  # units: float32 poses move a grazing ray's hit a little
+READINGS_DISAGREE = 0.05  # of the checked rows may disagree (a ray through a wall's very end)
+
+
+def _check_readings_match_world(db: Database, world: World) -> None:
+    """Refuse a database whose readings are not ray casts in the world its meta names
+    (readings recorded in one world, meta naming another), on rows spread over the file.
+    Readings with noise or dropouts are not compared (nothing exact to compare with)."""
+    if db.meta.get("noise_std", 0) or db.meta.get("dropout", 0) or len(db) == 0:
+        return
+    rows = np.unique(np.linspace(0, len(db) - 1, min(len(db), READINGS_CHECKED)).astype(int))
+    cast = read_sensors(world, db.poses[rows].astype(np.float64), db.layout)
+    off = np.abs(cast - db.sensors[rows]).max(axis=1) > READINGS_TOLERANCE
+    if off.mean() > READINGS_DISAGREE:
+        row = int(rows[np.argmax(off)])
+        raise InputError(
+            f"{db.path}: its readings are not those of the world its meta names "
+            f"({world.name!r}): {off.mean():.0%} of {len(rows):,} checked rows disagree with "
+            f"ray casts there (row {row}: read {np.round(db.sensors[row], 2).tolist()}, "
+            f"the walls give {np.round(cast[np.argmax(off)], 2).tolist()})"
         )
 
 

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from sensorimotor.errors import InputError
+from sensorimotor.files import MAX_TEXT_BYTES, check_input, check_nesting
 
 BUILTIN_WORLDS = ("square", "rooms1", "rooms2")
 START_CLEARANCE = 1.0  # a start position keeps at least this distance to every wall (units)
@@ -252,8 +253,7 @@ def load_world(spec: str | Path) -> World:
                 "or the path of a .toml world file"
             )
         raise InputError(f"{path}: world file not found")
-    if path.is_dir():
-        raise InputError(f"{path}: is a folder, not a world file")
+    check_input(path, "world file", MAX_TEXT_BYTES)
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as err:
@@ -264,6 +264,9 @@ def load_world(spec: str | Path) -> World:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise InputError(f"{path}: not valid TOML ({err})") from None
+    except RecursionError:
+        raise InputError(f"{path}: nested too deeply to be a world file") from None
+    check_nesting(data, str(path))
     world = world_from_dict(data, str(path))
     check_builtin_name(world, str(path))
     return world
@@ -302,12 +305,22 @@ def point_segment_distance(segments: np.ndarray, x: np.ndarray, y: np.ndarray) -
 def free_start_cells(world: World, resolution: float = 0.25) -> np.ndarray:
     """(P, 2) grid points at least START_CLEARANCE from every wall: proof that a start exists.
 
-    The grid is coarsened for big worlds so that it never holds more than 400 x 400 points.
+    The grid is coarsened for big worlds so that it never holds more than 400 x 400 points,
+    and measured against the walls a block of points at a time (memory stays under about
+    100 MB whatever the number of walls).
     """
     resolution = max(resolution, world.width / 400, world.height / 400)
     xs = np.arange(resolution / 2, world.width, resolution)
     ys = np.arange(resolution / 2, world.height, resolution)
     gx, gy = np.meshgrid(xs, ys)
     gx, gy = gx.ravel(), gy.ravel()
-    ok = point_segment_distance(world.segments, gx, gy).min(axis=1) >= START_CLEARANCE
+    segments = world.segments
+    block = max(1, 2_000_000 // len(segments))  # points a block: (block, S) float64 arrays
+    ok = np.concatenate(
+        [
+            point_segment_distance(segments, gx[i : i + block], gy[i : i + block]).min(axis=1)
+            >= START_CLEARANCE
+            for i in range(0, len(gx), block)
+        ]
+    )
     return np.stack([gx[ok], gy[ok]], axis=1)

@@ -1,0 +1,267 @@
+"""A corpus of hostile inputs and faults, one family of the hardening issue at a time: every
+one ends in one line and exit 2 (or an InputError from the library), or in the data kept
+intact. New file kinds add their inputs here."""
+
+from __future__ import annotations
+
+import errno
+import json
+import os
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import torch
+
+from conftest import assert_one_line_error
+from sensorimotor.errors import InputError
+from sensorimotor.files import atomic_path, folder_lock, strict_json, write_json_atomic
+from sensorimotor.learn.runs import TrainConfig
+from sensorimotor.learn.train import train
+from sensorimotor.sim.core import read_sensors
+from sensorimotor.sim.database import Database, generate, load_database, save_database
+from sensorimotor.sim.world import load_world
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory, square_db_path):
+    """A finished S run (2 epochs) to be damaged by the tests, copied fresh for each."""
+    out = tmp_path_factory.mktemp("trained") / "run"
+    train(square_db_path, out, TrainConfig(model="s", max_epochs=2))
+    return out
+
+
+@pytest.fixture
+def run(trained, tmp_path):
+    import shutil
+
+    dest = tmp_path / "run"
+    shutil.copytree(trained, dest)
+    return dest
+
+
+def _resume(cli, run, square_db_path):
+    return cli(
+        "train", "s", "--data", square_db_path, "--out", run, "--max-epochs", "3", "--resume"
+    )
+
+
+# 1. A trained run can be lost ---------------------------------------------------------------
+
+
+def test_a_second_process_on_the_same_run_folder_is_refused(cli, run, square_db_path):
+    with folder_lock(run, "run folder"):  # as a training process holds it
+        proc = _resume(cli, run, square_db_path)
+    assert_one_line_error(proc, str(run), "another process is writing this run folder")
+
+
+def test_resume_without_checkpoint_keeps_the_trained_model(cli, run, square_db_path):
+    (run / "checkpoint.pt").unlink()
+    before = (run / "model.pt").read_bytes()
+    proc = _resume(cli, run, square_db_path)
+    assert_one_line_error(proc, "checkpoint.pt is missing", "replace the trained model.pt")
+    assert (run / "model.pt").read_bytes() == before
+
+
+def test_resume_without_config_is_refused(cli, run, square_db_path):
+    (run / "config.json").unlink()
+    proc = _resume(cli, run, square_db_path)
+    assert_one_line_error(proc, "no config.json")
+    assert not (run / "config.json").exists()  # nothing written
+
+
+@pytest.mark.parametrize(
+    ("edit", "needle"),
+    [
+        (lambda c: c.update(epoch=-5), "epoch must be an integer >= 0"),
+        (lambda c: c["optimizer"]["exp_avg"].__setitem__(0, torch.zeros(3)), "exp_avg[0]"),
+        (lambda c: c["history"][0].update(val_error="x"), "not a number"),
+        (lambda c: c["history"].pop(), "epochs 0..1"),
+    ],
+)
+def test_a_hand_edited_checkpoint_is_refused_before_anything_is_written(
+    edit, needle, cli, run, square_db_path
+):
+    ckpt = torch.load(run / "checkpoint.pt", weights_only=True)
+    edit(ckpt)
+    with open(run / "checkpoint.pt", "wb") as f:
+        torch.save(ckpt, f)
+    files = {p.name: p.read_bytes() for p in run.iterdir() if p.is_file()}
+    proc = _resume(cli, run, square_db_path)
+    assert_one_line_error(proc, "corrupt checkpoint", needle)
+    assert {p.name: p.read_bytes() for p in run.iterdir() if p.is_file()} == files
+
+
+# 2. A wrong number reported as right ----------------------------------------------------------
+
+
+def test_readings_of_another_world_than_the_meta_names_are_refused(tmp_path):
+    db = generate(load_world("square"), 3_000, seed=0)
+    meta = {**db.meta, "world": load_world("rooms1").to_dict()}
+    poses = db.poses.copy()
+    poses[:, :2] = np.clip(poses[:, :2], 1, 49)  # inside rooms1 too; the walls differ
+    save_database(Database(db.sensors, db.motors, poses, meta), tmp_path / "lie.npz")
+    with pytest.raises(InputError, match="not those of the world its meta names"):
+        load_database(tmp_path / "lie.npz")
+
+
+@pytest.mark.parametrize(
+    ("column", "row_value", "needle"),
+    [
+        ("motors", (0, 1e30), "motors (d)"),
+        ("motors", (1, 40.0), "motors (r)"),
+        ("poses", (2, 4.0), "poses (heading)"),
+    ],
+)
+def test_motor_commands_and_headings_are_range_checked(column, row_value, needle, tmp_path):
+    db = generate(load_world("square"), 500, seed=0)
+    arrays = {"sensors": db.sensors, "motors": db.motors.copy(), "poses": db.poses.copy()}
+    col, value = row_value
+    arrays[column][7, col] = value
+    save_database(Database(**arrays, meta=db.meta), tmp_path / "bad.npz")
+    with pytest.raises(InputError, match=re.escape(f"{needle} of row 7 is out of range")):
+        load_database(tmp_path / "bad.npz")
+
+
+def test_training_that_diverges_stops_with_one_line_and_keeps_the_last_good_epoch(
+    square_db_path, tmp_path
+):
+    out = tmp_path / "run"
+    with pytest.raises(InputError, match="training diverged at epoch"):
+        train(square_db_path, out, TrainConfig(model="sm", lr=1e30, max_epochs=3))
+    assert not (out / "result.json").exists()
+    if (out / "checkpoint.pt").exists():  # an epoch before the divergence was fine
+        ckpt = torch.load(out / "checkpoint.pt", weights_only=True)
+        assert all(torch.isfinite(t).all() for t in ckpt["model"].values())
+
+
+def test_a_fixed_pose_gives_no_position_score_instead_of_a_perfect_one(tmp_path, cli):
+    world = load_world("square")
+    n = 4_000
+    rng = np.random.default_rng(0)
+    poses = np.tile(np.array([[25.0, 25.0, 0.0]]), (n, 1))
+    sensors = read_sensors(world, poses).astype(np.float32)
+    motors = np.stack([rng.uniform(0, 1, n), rng.uniform(-0.5, 0.5, n)], 1).astype(np.float32)
+    meta = {"world": world.to_dict(), "seed": 0}
+    save_database(Database(sensors, motors, poses.astype(np.float32), meta), tmp_path / "still.npz")
+    proc = cli(
+        "analyze", "raw", "--data", tmp_path / "still.npz", "--out", tmp_path / "a", "--no-svg"
+    )
+    assert proc.returncode == 0, proc.stderr
+    text = (tmp_path / "a" / "metrics.json").read_text()
+    metrics = json.loads(text)  # strict: a NaN would not parse as JSON below
+    json.loads(text, parse_constant=lambda c: pytest.fail(f"{c} in metrics.json"))
+    assert metrics["analysis"]["position"]["r2_x"] is None
+
+
+def test_json_out_refuses_numbers_that_are_not_numbers(tmp_path):
+    with pytest.raises(InputError, match=r"errors.rooms1 is inf"):
+        strict_json({"errors": {"square": 0.1, "rooms1": float("inf")}}, tmp_path / "r.json")
+    with pytest.raises(InputError, match=r"\[1\] is nan"):
+        write_json_atomic(tmp_path / "r.json", [0.0, float("nan")])
+    assert not (tmp_path / "r.json").exists()
+
+
+# 3. Files that are not what they seem -----------------------------------------------------------
+
+
+def test_an_output_that_is_a_symlink_or_a_device_is_refused_not_replaced(tmp_path, cli):
+    target = tmp_path / "precious.npz"
+    target.write_bytes(b"keep me")
+    link = tmp_path / "link.npz"
+    link.symlink_to(target)
+    proc = cli("generate", "square", "--steps", "500", "--out", link)
+    assert_one_line_error(proc, "symbolic link")
+    assert link.is_symlink()
+    assert target.read_bytes() == b"keep me"
+    proc = cli("generate", "square", "--steps", "500", "--out", "/dev/null")
+    assert_one_line_error(proc, "/dev/null", "a device, not a regular file")
+
+
+def test_a_fifo_or_an_endless_file_as_input_is_refused_without_reading_it(tmp_path, cli):
+    fifo = tmp_path / "world.toml"
+    os.mkfifo(fifo)
+    proc = cli("generate", fifo, "--steps", "500", "--out", tmp_path / "db.npz", timeout=60)
+    assert_one_line_error(proc, "a FIFO, not a world file")
+    proc = cli("generate", "/dev/zero", "--steps", "500", "--out", tmp_path / "db.npz", timeout=60)
+    assert_one_line_error(proc, "/dev/zero", "not a world file")
+    fifo_db = tmp_path / "db.npz"
+    os.mkfifo(fifo_db)
+    with pytest.raises(InputError, match="a FIFO, not a database"):
+        load_database(fifo_db)
+
+
+def _write_on_a_full_disk(path) -> None:
+    with atomic_path(path) as tmp:
+        tmp.write_text("half")
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+
+def test_a_full_disk_leaves_nothing_half_written(tmp_path):
+    path = tmp_path / "out.json"
+    with pytest.raises(InputError, match=r"out.json: cannot write \(no space left on the device\)"):
+        _write_on_a_full_disk(path)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_temporaries_of_a_killed_process_are_cleaned_by_the_next_write(tmp_path):
+    dead = subprocess.run(
+        [sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True
+    )
+    pid = int(dead.stdout)
+    stale = tmp_path / f".db.npz.{pid}.abc123.tmp.npz"
+    stale.write_bytes(b"left by kill -9")
+    ours = tmp_path / f".db.npz.{os.getpid()}.xyz789.tmp.npz"  # a live writer's: kept
+    ours.write_bytes(b"in progress")
+    save_database(generate(load_world("square"), 200, seed=0), tmp_path / "db.npz")
+    assert not stale.exists()
+    assert ours.exists()
+
+
+# 4. Tracebacks where one line is promised -----------------------------------------------------
+
+
+def test_deeply_nested_world_files_and_run_configs_are_one_line(tmp_path, cli, run):
+    world = tmp_path / "deep.toml"
+    world.write_text("size = 50\nwalls = " + "[" * 5000 + "]" * 5000 + "\n")
+    proc = cli("generate", world, "--steps", "500", "--out", tmp_path / "db.npz")
+    assert_one_line_error(proc, str(world), "nested")
+    (run / "config.json").write_text("[" * 100_000 + "]" * 100_000)
+    proc = cli("evaluate", run, "--data", tmp_path / "db.npz")
+    assert_one_line_error(proc, "config.json", "nested")
+
+
+def test_a_name_too_long_for_the_file_system_is_one_line(tmp_path, cli):
+    proc = cli("generate", "square", "--steps", "500", "--out", tmp_path / ("w" * 300 + ".npz"))
+    assert_one_line_error(proc, "cannot write there")
+
+
+@pytest.mark.parametrize(
+    "sizes", [{"lstm_size": -3}, {"predictor_hidden": 10**9}, {"z_sensors": 2.5}]
+)
+def test_absurd_model_sizes_in_a_run_config_are_one_line(sizes, cli, run, square_db_path):
+    config = json.loads((run / "config.json").read_text())
+    config["model"].update(sizes)
+    (run / "config.json").write_text(json.dumps(config))
+    proc = cli("evaluate", run, "--data", square_db_path)
+    assert_one_line_error(proc, "config.json", "corrupt run config", next(iter(sizes)))
+
+
+# 5. A world the checks accept but cannot run ---------------------------------------------------
+
+
+def test_finding_a_start_in_a_world_of_many_walls_stays_small(tmp_path):
+    """10,000 short walls: the start search measures blocks of points (it once needed 13 GB)."""
+    import resource
+
+    rng = np.random.default_rng(0)
+    x, y = rng.uniform(5, 995, 10_000), rng.uniform(5, 995, 10_000)
+    walls = np.stack([x, y, x + 0.5, y], 1).round(3).tolist()
+    path = tmp_path / "many.toml"
+    path.write_text(f'name = "many"\nsize = 1000\nwalls = {walls}\n')
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    assert len(load_world(path).walls) == 10_000
+    grown_mb = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before) / 1024
+    assert grown_mb < 1_000
