@@ -1,0 +1,501 @@
+"""Recordings of real robots: a ROS bag (2-D laser scans and odometry) made into a database.
+
+``import_bag`` reads ROS 1 bags and ROS 2 bags (sqlite3 or MCAP) with ``rosbags`` (pure Python,
+no ROS installation; the ``[ros]`` extra, imported only here, only when a bag is read) and
+returns a Database that trains, evaluates and analyses as a simulated one does.
+
+How the rows are made:
+
+- **Clock.** Each message is placed at its header stamp (the time the sensor saw it), or at the
+  bag's receive time for a topic whose stamps are all zero and for ``geometry_msgs/Twist``,
+  which has no header. Messages out of order are sorted (and counted); one stamped more than
+  ``MAX_BACK_JUMP_S`` before an earlier one of its topic is a clock jump and refused.
+- **Rows** sit on a fixed-rate grid on the scan clock (``rate``; default the median scan rate):
+  scan ``i`` falls in slot ``round((t_i - t_0) * rate)``, the scan nearest to a slot's time
+  keeps it. A row needs the next slot filled too, since its command is the motion that leads
+  there: a time gap drops the row before it (counted as ``gaps``, ``slots_empty``).
+- **Readings** (``sensor_msgs/LaserScan``): each ray of the layout takes the nearest beam to its
+  angle, ``round((angle - angle_min) / angle_increment)``; REP 117: ``+inf`` and a reading above
+  ``range_max`` mean no return and read the range, NaN, ``-inf`` and a reading below
+  ``range_min`` are invalid and drop the scan (counted); every reading is capped at the range.
+  A scan whose angles do not reach a ray of the layout is refused (choose another ``--fov``).
+- **Poses** (``nav_msgs/Odometry``): x, y and the yaw of the orientation, interpolated linearly
+  (the yaw unwrapped) at each row's scan stamp, in the odometry frame (``meta.source.frames``).
+  A row outside the odometry's time span, or between two odometry messages further apart than
+  ``MAX_ODOM_GAP_S``, is dropped (counted). The laser is taken to sit at the robot's origin.
+- **Commands** ``(d, r)``: by default the motion executed between a row and the next, in the
+  simulator's terms (``sim.core.apply_motor``: move ``d`` along the heading, then turn ``r``):
+  ``d`` the displacement projected on the heading (negative when reversing; sideways drift,
+  which ``(d, r)`` cannot express, is dropped and its largest value reported), ``r`` the change
+  of heading in (-pi, pi]. With ``cmd`` (``geometry_msgs/Twist`` or ``TwistStamped``): the last
+  command sent at or before the row's scan, ``(linear.x * dt, angular.z * dt)`` with ``dt`` the
+  time to the next row (rows before the first command are dropped, counted).
+
+The world is unknown unless one is given: ``meta.world`` is then only a name (the bag's), and
+the stages that need walls say so (``Database.has_walls``). With ``world``, the poses must be in
+that world's frame (a bag recorded in the map's frame): one outside it is refused.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from sensorimotor.errors import InputError
+from sensorimotor.sim.core import DEFAULT_LAYOUT, SensorLayout
+from sensorimotor.sim.database import ARRAYS, Database
+from sensorimotor.sim.world import BUILTIN_WORLDS, World
+from sensorimotor.version import __version__
+
+INSTALL_HINT = "install the [ros] extra: pip install -e '.[ros]'"
+MAX_BACK_JUMP_S = 1.0  # s: a stamp this far before an earlier one is a clock jump, not jitter
+MAX_ODOM_GAP_S = 1.0  # s: no pose is interpolated between odometry messages further apart
+SCAN_TYPES = ("sensor_msgs/msg/LaserScan",)
+ODOM_TYPES = ("nav_msgs/msg/Odometry",)
+CMD_TYPES = ("geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped")
+
+
+@dataclass(frozen=True)
+class BagTopics:
+    """The topics to read (``cmd``: None takes the commands from odometry)."""
+
+    scan: str = "/scan"
+    odom: str = "/odom"
+    cmd: str | None = None
+
+
+def _rosbags():
+    """The ``rosbags`` reader, or an InputError telling how to install it."""
+    try:
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
+    except ImportError:
+        raise InputError(INSTALL_HINT) from None
+    return AnyReader, get_typestore(Stores.ROS2_HUMBLE)
+
+
+def bag_format(path: Path) -> str:
+    """``rosbag1``, ``rosbag2/sqlite3`` or ``rosbag2/mcap``, from the bag's files."""
+    if path.is_dir():
+        files = {p.suffix for p in path.iterdir()}
+        return "rosbag2/mcap" if ".mcap" in files else "rosbag2/sqlite3"
+    return "rosbag2/mcap" if path.suffix == ".mcap" else "rosbag1"
+
+
+@dataclass
+class _Stream:
+    """One topic's messages as read, in bag order: stamps (header), receive times, values."""
+
+    stamp: list
+    recv: list
+    values: list
+
+
+def _read(bag: Path, topics: BagTopics, layout: SensorLayout) -> tuple[dict, dict, dict]:
+    """Every message of the three topics, decoded to the few numbers a row needs."""
+    any_reader, typestore = _rosbags()
+
+    angles = np.asarray(layout.angles, dtype=np.float64)
+    wanted = {"scan": topics.scan, "odom": topics.odom}
+    if topics.cmd is not None:
+        wanted["cmd"] = topics.cmd
+    streams = {k: _Stream([], [], []) for k in wanted}
+    frames: dict[str, str] = {}
+    counts = {"beams_nan": 0, "beams_too_close": 0, "beams_no_return": 0}
+    try:
+        reader = any_reader([bag], default_typestore=typestore)
+        reader.open()
+    except Exception as err:  # rosbags raises its own error classes per format
+        raise InputError(f"{bag}: cannot open as a ROS bag ({_why(err)})") from None
+    try:
+        by_topic = {c.topic: c for c in reader.connections}
+        kinds = {"scan": SCAN_TYPES, "odom": ODOM_TYPES, "cmd": CMD_TYPES}
+        conns = []
+        for key, topic in wanted.items():
+            conn = by_topic.get(topic)
+            if conn is None:
+                have = ", ".join(sorted(by_topic)) or "none"
+                raise InputError(f"{bag}: no topic {topic!r} (topics: {have}); see --{key}")
+            if conn.msgtype not in kinds[key]:
+                raise InputError(
+                    f"{bag}: topic {topic!r} is {conn.msgtype}, expected {' or '.join(kinds[key])}"
+                )
+            conns += [c for c in reader.connections if c.topic == topic]
+        key_of = {topic: key for key, topic in wanted.items()}
+        geometry: tuple = ()
+        index = np.zeros(0, dtype=np.int64)
+        try:
+            for conn, recv, raw in reader.messages(connections=conns):
+                key = key_of[conn.topic]
+                msg = reader.deserialize(raw, conn.msgtype)
+                s = streams[key]
+                s.recv.append(recv)
+                header = getattr(msg, "header", None)
+                s.stamp.append(
+                    0 if header is None else header.stamp.sec * 1_000_000_000 + header.stamp.nanosec
+                )
+                if key == "scan":
+                    g = (msg.angle_min, msg.angle_increment, len(msg.ranges))
+                    if g != geometry:
+                        geometry, index = g, _beam_index(bag, angles, *g)
+                        frames.setdefault("scan", header.frame_id)
+                    s.values.append(
+                        _readings(msg.ranges[index], msg.range_min, msg.range_max, layout, counts)
+                    )
+                elif key == "odom":
+                    p, q = msg.pose.pose.position, msg.pose.pose.orientation
+                    yaw = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
+                    s.values.append((p.x, p.y, yaw))
+                    if "odom" not in frames:
+                        frames["odom"], frames["base"] = header.frame_id, msg.child_frame_id
+                else:
+                    twist = msg.twist if header is not None else msg
+                    s.values.append((twist.linear.x, twist.angular.z))
+        except InputError:
+            raise
+        except Exception as err:  # a truncated or damaged bag, a message that does not decode
+            raise InputError(f"{bag}: damaged or truncated bag ({_why(err)})") from None
+    finally:
+        reader.close()
+    return streams, frames, counts
+
+
+def _why(err: Exception) -> str:
+    text = str(err).strip().splitlines()
+    return f"{type(err).__name__}: {text[0]}" if text else type(err).__name__
+
+
+def _beam_index(bag: Path, angles: np.ndarray, angle_min: float, inc: float, n: int) -> np.ndarray:
+    """(R,) the beam nearest to each ray's angle; InputError when the scan does not reach one."""
+    if n == 0 or not (math.isfinite(angle_min) and math.isfinite(inc)) or inc == 0:
+        raise InputError(
+            f"{bag}: a scan with {n} beams, angle_min {angle_min:g}, angle_increment {inc:g}"
+        )
+    index = np.rint((angles - angle_min) / inc).astype(np.int64)
+    bad = (index < 0) | (index >= n)
+    if bad.any():
+        lo, hi = sorted((angle_min, angle_min + inc * (n - 1)))
+        raise InputError(
+            f"{bag}: the scans cover angles {lo:.3f}..{hi:.3f} rad, the layout's ray at "
+            f"{angles[bad][0]:g} rad lies outside (choose --fov within them)"
+        )
+    return index
+
+
+def _readings(beams, range_min: float, range_max: float, layout: SensorLayout, counts: dict):
+    """The layout's readings of one scan (REP 117), or None when one of them is invalid."""
+    r = np.asarray(beams, dtype=np.float64)
+    nan = np.isnan(r)
+    close = (r < range_min) & ~nan  # -inf included
+    far = (r > range_max) & ~nan  # +inf included
+    if nan.any() or close.any():
+        counts["beams_nan"] += int(nan.sum())
+        counts["beams_too_close"] += int(close.sum())
+        return None
+    counts["beams_no_return"] += int(far.sum())
+    return np.minimum(np.where(far, layout.max_range, r), layout.max_range)
+
+
+def _clock(bag: Path, name: str, s: _Stream, counts: dict, clocks: dict) -> tuple:
+    """Times (ns, int64) and the order that sorts them: header stamps, or receive times when a
+    topic has no stamps. Out-of-order messages are counted; a jump back is refused."""
+    ns = np.asarray(s.stamp, dtype=np.int64)
+    clocks[name] = "header stamps"
+    if not ns.any():
+        ns = np.asarray(s.recv, dtype=np.int64)
+        clocks[name] = "bag receive times"
+    if len(ns) > 1:
+        back = np.maximum.accumulate(ns)[:-1] - ns[1:]  # how far each is before the latest
+        if back.max() > MAX_BACK_JUMP_S * 1e9:
+            i = int(np.argmax(back > MAX_BACK_JUMP_S * 1e9)) + 1
+            raise InputError(
+                f"{bag}: {name} message {i} is stamped {back[i - 1] / 1e9:.3f} s before an "
+                "earlier one (the clock jumped back: split the bag there)"
+            )
+        counts[f"{name}_out_of_order"] = int((back > 0).sum())
+    return ns, np.argsort(ns, kind="stable")
+
+
+def import_bag(
+    bag: str | Path,
+    topics: BagTopics = BagTopics(),
+    layout: SensorLayout = DEFAULT_LAYOUT,
+    rate: float | None = None,
+    world: World | None = None,
+) -> Database:
+    """Read ``bag`` (a ROS 1 ``.bag``, a ROS 2 bag folder or ``.mcap``) into a Database: one row
+    per slot of the ``rate`` grid (see the module docstring for every rule), the meta recording
+    the bag, its topics and frames, and what was dropped. InputError, one line, for a bag that
+    cannot be made into one."""
+    bag = Path(bag)
+    if not bag.exists():
+        raise InputError(f"{bag}: bag not found")
+    if len(layout.angles) != ARRAYS["sensors"]:
+        raise InputError(
+            f"--rays {len(layout.angles)}: a database holds {ARRAYS['sensors']} readings a step "
+            "for now (what the encoders read)"
+        )
+    if rate is not None and not (math.isfinite(rate) and rate > 0):
+        raise InputError(f"--rate must be a positive number of Hz, got {rate}")
+    streams, frames, counts = _read(bag, topics, layout)
+    for key, s in streams.items():
+        if not s.values:
+            raise InputError(f"{bag}: topic {getattr(topics, key)!r} has no messages")
+    clocks: dict[str, str] = {}
+    ns, order = _clock(bag, "scan", streams["scan"], counts, clocks)
+    origin = int(ns[order[0]])  # the first scan's stamp: times are seconds after it
+
+    def seconds(ns: np.ndarray) -> np.ndarray:
+        return (ns - origin) / 1e9
+
+    scans = [streams["scan"].values[i] for i in order]
+    ts = seconds(ns[order])
+    valid = np.array([v is not None for v in scans])
+    counts["scans"] = len(scans)
+    counts["scans_invalid"] = int((~valid).sum())
+    if len(ts) > 1:
+        dt = np.diff(ts)
+        counts["scans_same_stamp"] = int((dt == 0).sum())
+        step = float(np.median(dt[dt > 0])) if (dt > 0).any() else 0.0
+    else:
+        step = 0.0
+    if rate is None:
+        if step <= 0:
+            raise InputError(f"{bag}: fewer than two scans at distinct times: give --rate")
+        rate = 1.0 / step
+    ts, scans = ts[valid], [v for v in scans if v is not None]
+    if len(scans) < 2:
+        raise InputError(f"{bag}: {len(scans)} valid scans (of {counts['scans']}); need 2 or more")
+    t0 = ts[0]
+    slot = np.rint((ts - t0) * rate).astype(np.int64)  # (S,) grid slot of each valid scan
+    off = np.abs(ts - (t0 + slot / rate))
+    # the scan nearest to its slot's time keeps the slot: sort by (slot, distance), keep firsts
+    pick = np.lexsort((off, slot))
+    keep = pick[np.r_[True, slot[pick][1:] != slot[pick][:-1]]]
+    counts["scans_merged"] = len(slot) - len(keep)
+    slot, t = slot[keep], ts[keep]
+    sensors = np.stack([scans[i] for i in keep])  # (K, R) float64
+    jumps = np.diff(slot)
+    counts["gaps"] = int((jumps > 1).sum())
+    counts["slots_empty"] = int((jumps - 1).sum())
+    counts["rows_without_next"] = int((jumps > 1).sum()) + 1  # before a gap, and the last
+
+    to, oo = _clock(bag, "odom", streams["odom"], counts, clocks)
+    odom = np.asarray(streams["odom"].values, dtype=np.float64)[oo]  # (O, 3)
+    to = seconds(to[oo])
+    pose, covered = _interpolate(to, odom, t)  # (K, 3), (K,) bool
+    has_next = np.r_[jumps == 1, False]
+    ok = has_next & covered & np.r_[covered[1:], False]
+    counts["rows_without_odometry"] = int((has_next & ~ok).sum())
+    dt_next = np.r_[np.diff(t), 0.0]
+    if topics.cmd is None:
+        nxt = np.roll(pose, -1, axis=0)
+        dx, dy = nxt[:, 0] - pose[:, 0], nxt[:, 1] - pose[:, 1]
+        c, s_ = np.cos(pose[:, 2]), np.sin(pose[:, 2])
+        d = dx * c + dy * s_
+        lateral = -dx * s_ + dy * c
+        r = _wrap(nxt[:, 2] - pose[:, 2])
+        counts["max_sideways_drift"] = float(np.abs(lateral[ok]).max()) if ok.any() else 0.0
+        how = "odometry: d = displacement along the heading, r = change of heading, to the next row"
+    else:
+        tc, oc = _clock(bag, "cmd", streams["cmd"], counts, clocks)
+        cmd = np.asarray(streams["cmd"].values, dtype=np.float64)[oc]
+        tc = seconds(tc[oc])
+        j = np.searchsorted(tc, t, side="right") - 1  # the last command at or before each row
+        sent = j >= 0
+        counts["rows_before_first_cmd"] = int((ok & ~sent).sum())
+        ok &= sent
+        j = np.maximum(j, 0)
+        d, r = cmd[j, 0] * dt_next, cmd[j, 1] * dt_next
+        how = f"{topics.cmd}: d = linear.x * dt, r = angular.z * dt, dt to the next row"
+    rows = np.flatnonzero(ok)
+    if len(rows) == 0:
+        raise InputError(
+            f"{bag}: no row has a scan, the next slot's scan and odometry around both "
+            f"({counts['scans']} scans; odometry {to[0]:.3f}..{to[-1]:.3f} s, scans "
+            f"{t[0]:.3f}..{t[-1]:.3f} s)"
+        )
+    motors = np.stack([d, r], axis=1)[rows]
+    out_pose, out_sensors = pose[rows], sensors[rows]
+    arrays = [out_sensors, motors, out_pose]
+    if not all(np.isfinite(a).all() for a in arrays):
+        raise InputError(f"{bag}: odometry or commands hold NaN or inf")
+    if world is not None:
+        _check_inside(bag, world, out_pose)
+    counts["rows"] = len(rows)
+    meta = {
+        "format": "sensorimotor-database/1",
+        "world": world.to_dict() if world is not None else {"name": bag_name(bag)},
+        "seed": None,
+        "steps": len(rows),
+        "sensor_layout": layout.to_dict(),
+        "noise_std": 0.0,
+        "behaviour": "a real robot's (recorded)",
+        "source": {
+            "kind": "rosbag",
+            "bag": str(bag),
+            "format": bag_format(bag),
+            "topics": {"scan": topics.scan, "odom": topics.odom, "cmd": topics.cmd},
+            "frames": frames,
+            "clocks": clocks,
+            "rate_hz": float(rate),
+            "start_s": origin / 1e9 + float(t[rows[0]]),
+            "duration_s": float(t[rows[-1]] - t[rows[0]]),
+            "beam": "nearest beam to each ray's angle",
+            "motors": how,
+            "counts": counts,
+        },
+        "version": __version__,
+    }
+    return Database(*(a.astype(np.float32) for a in arrays), meta=meta)
+
+
+def _interpolate(to: np.ndarray, odom: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Poses (K, 3) at times ``t`` from odometry (O, 3) at times ``to`` (sorted), and whether each
+    time lies between two odometry messages at most MAX_ODOM_GAP_S apart."""
+    yaw = np.unwrap(odom[:, 2])
+    pose = np.stack(
+        [np.interp(t, to, odom[:, 0]), np.interp(t, to, odom[:, 1]), _wrap(np.interp(t, to, yaw))],
+        axis=1,
+    )
+    hi = np.clip(np.searchsorted(to, t, side="left"), 0, len(to) - 1)
+    lo = np.clip(np.searchsorted(to, t, side="right") - 1, 0, len(to) - 1)
+    covered = (t >= to[0]) & (t <= to[-1]) & (to[hi] - to[lo] <= MAX_ODOM_GAP_S)
+    return pose, covered
+
+
+def _wrap(a: np.ndarray) -> np.ndarray:
+    """Angles wrapped into (-pi, pi] (the simulator's ``wrap_angle``)."""
+    out = np.mod(a + np.pi, 2 * np.pi) - np.pi
+    return np.where(out == -np.pi, np.pi, out)
+
+
+def _check_inside(bag: Path, world: World, poses: np.ndarray) -> None:
+    outside = (
+        (poses[:, 0] < 0)
+        | (poses[:, 1] < 0)
+        | (poses[:, 0] > world.width)
+        | (poses[:, 1] > world.height)
+    )
+    if outside.any():
+        i = int(np.argmax(outside))
+        raise InputError(
+            f"{bag}: pose {i} ({poses[i, 0]:.3f}, {poses[i, 1]:.3f}) lies outside the "
+            f"{world.width:g} x {world.height:g} world {world.name!r}: --world needs poses in "
+            "its frame"
+        )
+
+
+def bag_name(bag: Path) -> str:
+    """The name of a recording without a world (runs are named by it): the bag's, made safe."""
+    name = re.sub(r"[^A-Za-z0-9_.+-]+", "-", bag.stem if bag.is_file() else bag.name)
+    name = name.strip("_.+-") or "bag"
+    return f"{name}-bag" if name in BUILTIN_WORLDS else name
+
+
+FORMATS = ("rosbag2/sqlite3", "rosbag2/mcap", "rosbag1")
+BAG_START_NS = 1_700_000_000_000_000_000  # the first stamp of a written bag (ns since 1970)
+
+
+def scan_geometry(layout: SensorLayout, beams: int) -> tuple[float, float]:
+    """``(angle_min, angle_increment)`` of a ``beams``-beam scan, centred on the heading, one of
+    whose beams lies on each of ``layout``'s rays (so that a written bag reads back exactly):
+    the increment divides the rays' smallest spacing (about a degree for 360 beams)."""
+    angles = np.sort(np.asarray(layout.angles, dtype=np.float64))
+    spacing = float(np.diff(angles).min()) if len(angles) > 1 else 2 * math.pi / beams
+    inc = spacing / max(1, round(spacing / (2 * math.pi / beams)))
+    return -(beams // 2) * inc, inc
+
+
+def write_bag(
+    db: Database,
+    path: str | Path,
+    fmt: str = "rosbag2/sqlite3",
+    rate: float = 10.0,
+    beams: int = 360,
+    cmd: bool = False,
+) -> Path:
+    """Write ``db`` as a ROS bag of ``fmt`` (one of FORMATS) that ``import_bag`` reads back to
+    the same rows (but the last, whose step leads nowhere recorded): ``/scan`` LaserScans of
+    ``beams`` beams (``scan_geometry``) whose beams on the layout's rays hold the readings (the
+    range as ``+inf``, no return, REP 117) and the others NaN (not measured), and ``/odom``
+    Odometry with each row's pose, both stamped at ``rate`` Hz; with ``cmd``, ``/cmd_vel`` Twists
+    ``(d, r) * rate``. For tests, benchmarks, and ROS tools that want a simulated run."""
+    if fmt not in FORMATS:
+        raise InputError(f"unknown bag format {fmt!r}: use one of {', '.join(FORMATS)}")
+    _rosbags()  # the install hint when the extra is missing
+    from rosbags.typesys import Stores, get_typestore
+
+    ros1 = fmt == "rosbag1"
+    ts = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+    T = ts.types
+    msg = {k: T[k].__msgtype__ for k in (*SCAN_TYPES, *ODOM_TYPES, CMD_TYPES[0])}
+    serialize = ts.serialize_ros1 if ros1 else ts.serialize_cdr
+    angle_min, inc = scan_geometry(db.layout, beams)
+    index = np.rint((np.asarray(db.layout.angles) - angle_min) / inc).astype(np.int64)
+    ranges = np.full((len(db), beams), np.nan, dtype=np.float32)
+    ranges[:, index] = np.where(db.sensors >= db.max_range, np.inf, db.sensors)
+    period = round(1e9 / rate)
+    path = Path(path)
+    if path.exists():
+        raise InputError(f"{path}: exists already; a bag is not overwritten")
+    if ros1:
+        from rosbags.rosbag1 import Writer
+
+        writer = Writer(path)
+    else:
+        from rosbags.rosbag2 import StoragePlugin, Writer
+
+        plugin = StoragePlugin.MCAP if fmt.endswith("mcap") else StoragePlugin.SQLITE3
+        writer = Writer(path, version=9, storage_plugin=plugin)
+    vec, zero36 = T["geometry_msgs/msg/Vector3"], np.zeros(36)
+    with writer:
+        cs = writer.add_connection("/scan", SCAN_TYPES[0], typestore=ts)
+        co = writer.add_connection("/odom", ODOM_TYPES[0], typestore=ts)
+        cc = writer.add_connection("/cmd_vel", CMD_TYPES[0], typestore=ts) if cmd else None
+        for i in range(len(db)):
+            ns = BAG_START_NS + i * period
+            stamp = T["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
+
+            def header(frame: str, stamp=stamp, i=i):
+                extra = {"seq": i} if ros1 else {}
+                return T["std_msgs/msg/Header"](stamp=stamp, frame_id=frame, **extra)
+
+            scan = T[SCAN_TYPES[0]](
+                header=header("base_scan"),
+                angle_min=angle_min,
+                angle_max=angle_min + inc * (beams - 1),
+                angle_increment=inc,
+                time_increment=0.0,
+                scan_time=1.0 / rate,
+                range_min=0.0,
+                range_max=float(db.max_range),
+                ranges=ranges[i],
+                intensities=np.zeros(0, dtype=np.float32),
+            )
+            writer.write(cs, ns, serialize(scan, msg[SCAN_TYPES[0]]))
+            x, y, h = (float(v) for v in db.poses[i])
+            d, r = (float(v) * rate for v in db.motors[i])
+            twist = T["geometry_msgs/msg/Twist"](
+                linear=vec(x=d, y=0.0, z=0.0), angular=vec(x=0.0, y=0.0, z=r)
+            )
+            pose = T["geometry_msgs/msg/Pose"](
+                position=T["geometry_msgs/msg/Point"](x=x, y=y, z=0.0),
+                orientation=T["geometry_msgs/msg/Quaternion"](
+                    x=0.0, y=0.0, z=math.sin(h / 2), w=math.cos(h / 2)
+                ),
+            )
+            odom = T[ODOM_TYPES[0]](
+                header=header("odom"),
+                child_frame_id="base_link",
+                pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=zero36),
+                twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=twist, covariance=zero36),
+            )
+            writer.write(co, ns, serialize(odom, msg[ODOM_TYPES[0]]))
+            if cc is not None:
+                writer.write(cc, ns, serialize(twist, msg[CMD_TYPES[0]]))
+    return path
