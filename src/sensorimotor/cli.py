@@ -79,61 +79,31 @@ def generate(
 
 @app.command("import-bag")
 def import_bag(
-    bag: Annotated[
-        Path,
-        typer.Argument(help="A ROS 1 .bag, a ROS 2 bag folder (sqlite3 or MCAP) or an .mcap file."),
-    ],
+    bag: Annotated[Path, typer.Argument(help="ROS 1 .bag, ROS 2 bag folder or .mcap file.")],
     out: Annotated[Path, typer.Option(help="Database (.npz) to write.")],
     scan: Annotated[str, typer.Option(help="sensor_msgs/LaserScan topic.")] = "/scan",
     odom: Annotated[str, typer.Option(help="nav_msgs/Odometry topic (the poses).")] = "/odom",
     cmd: Annotated[
-        str | None,
-        typer.Option(
-            help="geometry_msgs/Twist topic to take the commands from (default: the motion "
-            "executed between two rows, from odometry)."
-        ),
+        str | None, typer.Option(help="Twist topic of the commands (default: odometry's motion).")
     ] = None,
-    rays: Annotated[int, typer.Option(help="Lasers of the layout (the encoders read 5).")] = 5,
-    fov: Annotated[
-        float, typer.Option(help="Angle between the outermost rays (rad), centred ahead.")
-    ] = 1.2,
-    range_: Annotated[
-        float, typer.Option("--range", help="Reading when nothing is nearer (units of the bag).")
-    ] = 10.0,
-    rate: Annotated[
-        float | None, typer.Option(help="Rows per second (default: the median scan rate).")
-    ] = None,
-    world: Annotated[
-        str | None,
-        typer.Option(help="World whose frame the poses are in (default: walls unknown)."),
-    ] = None,
+    rays: Annotated[int, typer.Option(help="Lasers (the encoders read 5).")] = 5,
+    fov: Annotated[float, typer.Option(help="Angle from first to last ray (rad).")] = 1.2,
+    range_: Annotated[float, typer.Option("--range", help="Reading of no return.")] = 10.0,
+    rate: Annotated[float | None, typer.Option(help="Rows/s (default: the scans').")] = None,
+    world: Annotated[str | None, typer.Option(help="World of the poses' frame.")] = None,
 ) -> None:
-    """Make a database of a real robot's recording: laser scans, odometry, (commands)."""
+    """Make a database of a real robot's recording: laser scans, odometry (see sim/rosbag.py)."""
     from sensorimotor.files import check_writable
-    from sensorimotor.sim.core import SensorLayout
+    from sensorimotor.sim import rosbag
     from sensorimotor.sim.database import save_database
-    from sensorimotor.sim.rosbag import BagTopics
-    from sensorimotor.sim.rosbag import import_bag as import_bag_db
     from sensorimotor.sim.world import load_world
 
-    if rays < 1:
-        raise InputError(f"--rays must be at least 1, got {rays}")
-    if not (math.isfinite(fov) and 0 <= fov < 2 * math.pi) or (rays > 1 and fov == 0):
-        raise InputError(f"--fov must be in (0, 2 pi) rad, got {fov}")
-    if not (math.isfinite(range_) and range_ > 0):
-        raise InputError(f"--range must be a positive number, got {range_}")
-    angles = [fov * (i / (rays - 1) - 0.5) for i in range(rays)] if rays > 1 else [0.0]
-    layout = SensorLayout(tuple(round(a, 12) for a in angles), float(range_))
+    layout = rosbag.ray_layout(rays, fov, range_)
     w = load_world(world) if world is not None else None
     check_writable(out)
-    db = import_bag_db(bag, BagTopics(scan, odom, cmd), layout, rate, w)
+    db = rosbag.import_bag(bag, rosbag.BagTopics(scan, odom, cmd), layout, rate, w)
     save_database(db, out)
-    c = db.meta["source"]["counts"]
-    err_console.print(
-        f"wrote {out} ({len(db):,} rows at {db.meta['source']['rate_hz']:.3g} Hz from "
-        f"{c['scans']:,} scans; dropped: {c['scans_invalid']:,} invalid scans, {c['gaps']:,} "
-        f"gaps, {c['rows_without_odometry']:,} rows without odometry)"
-    )
+    err_console.print(f"wrote {out}: {rosbag.summary(db)}")
 
 
 plot_app = typer.Typer(

@@ -101,7 +101,7 @@ class Database:
 
 def walls_unknown(meta: dict) -> bool:
     """Whether a database's ``meta.world`` names its source alone, without size or walls."""
-    world = meta.get("world")
+    world = meta.get("world") if isinstance(meta, dict) else None
     return isinstance(world, dict) and set(world) == {"name"}
 
 

@@ -68,6 +68,30 @@ class BagTopics:
     cmd: str | None = None
 
 
+def ray_layout(rays: int = 5, fov: float = 1.2, max_range: float = 10.0) -> SensorLayout:
+    """``rays`` lasers spread evenly over ``fov`` rad centred ahead, seeing ``max_range`` (the
+    defaults: the paper's five rays at -0.6 .. 0.6 rad, range 10); InputError if out of range."""
+    if rays < 1:
+        raise InputError(f"--rays must be at least 1, got {rays}")
+    if not (math.isfinite(fov) and 0 <= fov < 2 * math.pi) or (rays > 1 and fov == 0):
+        raise InputError(f"--fov must be in (0, 2 pi) rad, got {fov}")
+    if not (math.isfinite(max_range) and max_range > 0):
+        raise InputError(f"--range must be a positive number, got {max_range}")
+    angles = [fov * (i / (rays - 1) - 0.5) for i in range(rays)] if rays > 1 else [0.0]
+    return SensorLayout(tuple(round(a, 12) + 0.0 for a in angles), float(max_range))
+
+
+def summary(db: Database) -> str:
+    """One line on an imported database: its rows, and what was dropped."""
+    src = db.meta["source"]
+    c = src["counts"]
+    return (
+        f"{len(db):,} rows at {src['rate_hz']:.4g} Hz from {c['scans']:,} scans of "
+        f"{src['bag']}; dropped {c['scans_invalid']:,} invalid scans, {c['gaps']:,} gaps "
+        f"({c['slots_empty']:,} empty slots), {c['rows_without_odometry']:,} rows without odometry"
+    )
+
+
 def _rosbags():
     """The ``rosbags`` reader, or an InputError telling how to install it."""
     try:
@@ -418,13 +442,18 @@ def write_bag(
     rate: float = 10.0,
     beams: int = 360,
     cmd: bool = False,
+    times: np.ndarray | None = None,
+    received: np.ndarray | None = None,
 ) -> Path:
     """Write ``db`` as a ROS bag of ``fmt`` (one of FORMATS) that ``import_bag`` reads back to
     the same rows (but the last, whose step leads nowhere recorded): ``/scan`` LaserScans of
     ``beams`` beams (``scan_geometry``) whose beams on the layout's rays hold the readings (the
     range as ``+inf``, no return, REP 117) and the others NaN (not measured), and ``/odom``
     Odometry with each row's pose, both stamped at ``rate`` Hz; with ``cmd``, ``/cmd_vel`` Twists
-    ``(d, r) * rate``. For tests, benchmarks, and ROS tools that want a simulated run."""
+    ``(d, r) * rate``. ``times`` (N,) stamps the rows elsewhere (seconds after the first's
+    default, ``row / rate``: gaps, clock jumps) and ``received`` the times the recorder got
+    them (default ``times``; readers yield messages in this order: disorder). For tests,
+    benchmarks, and ROS tools that want a simulated run."""
     if fmt not in FORMATS:
         raise InputError(f"unknown bag format {fmt!r}: use one of {', '.join(FORMATS)}")
     _rosbags()  # the install hint when the extra is missing
@@ -439,7 +468,12 @@ def write_bag(
     index = np.rint((np.asarray(db.layout.angles) - angle_min) / inc).astype(np.int64)
     ranges = np.full((len(db), beams), np.nan, dtype=np.float32)
     ranges[:, index] = np.where(db.sensors >= db.max_range, np.inf, db.sensors)
-    period = round(1e9 / rate)
+    if times is None:
+        times = np.arange(len(db)) / rate
+    stamps = BAG_START_NS + np.rint(np.asarray(times, dtype=np.float64) * 1e9).astype(np.int64)
+    if received is None:
+        received = times
+    recv = BAG_START_NS + np.rint(np.asarray(received, dtype=np.float64) * 1e9).astype(np.int64)
     path = Path(path)
     if path.exists():
         raise InputError(f"{path}: exists already; a bag is not overwritten")
@@ -458,7 +492,7 @@ def write_bag(
         co = writer.add_connection("/odom", ODOM_TYPES[0], typestore=ts)
         cc = writer.add_connection("/cmd_vel", CMD_TYPES[0], typestore=ts) if cmd else None
         for i in range(len(db)):
-            ns = BAG_START_NS + i * period
+            ns, at = int(stamps[i]), int(recv[i])
             stamp = T["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
 
             def header(frame: str, stamp=stamp, i=i):
@@ -477,7 +511,7 @@ def write_bag(
                 ranges=ranges[i],
                 intensities=np.zeros(0, dtype=np.float32),
             )
-            writer.write(cs, ns, serialize(scan, msg[SCAN_TYPES[0]]))
+            writer.write(cs, at, serialize(scan, msg[SCAN_TYPES[0]]))
             x, y, h = (float(v) for v in db.poses[i])
             d, r = (float(v) * rate for v in db.motors[i])
             twist = T["geometry_msgs/msg/Twist"](
@@ -495,7 +529,7 @@ def write_bag(
                 pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=zero36),
                 twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=twist, covariance=zero36),
             )
-            writer.write(co, ns, serialize(odom, msg[ODOM_TYPES[0]]))
+            writer.write(co, at, serialize(odom, msg[ODOM_TYPES[0]]))
             if cc is not None:
-                writer.write(cc, ns, serialize(twist, msg[CMD_TYPES[0]]))
+                writer.write(cc, at, serialize(twist, msg[CMD_TYPES[0]]))
     return path
