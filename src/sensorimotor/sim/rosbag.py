@@ -110,26 +110,31 @@ def bag_format(path: Path) -> str:
     return "rosbag2/mcap" if path.suffix == ".mcap" else "rosbag1"
 
 
+CHUNK = 50_000  # messages of a topic decoded at once (bounds the raw bytes held)
+
+
 @dataclass
 class _Stream:
-    """One topic's messages as read, in bag order: stamps (header), receive times, values."""
+    """One topic as read, in bag order: header stamps and receive times (ns), decoded values
+    (scans: ``bagcodec.Scans``; odometry: (K, 3) poses; commands: (K, 2)), raw bytes waiting."""
 
     stamp: list
     recv: list
     values: list
+    raw: list
 
 
-def _read(bag: Path, topics: BagTopics, layout: SensorLayout) -> tuple[dict, dict, dict]:
+def _read(bag: Path, topics: BagTopics, layout: SensorLayout, decoder: str) -> tuple:
     """Every message of the three topics, decoded to the few numbers a row needs."""
-    any_reader, typestore = _rosbags()
+    from sensorimotor.sim import bagcodec
 
+    any_reader, typestore = _rosbags()
     angles = np.asarray(layout.angles, dtype=np.float64)
     wanted = {"scan": topics.scan, "odom": topics.odom}
     if topics.cmd is not None:
         wanted["cmd"] = topics.cmd
-    streams = {k: _Stream([], [], []) for k in wanted}
+    streams = {k: _Stream([], [], [], []) for k in wanted}
     frames: dict[str, str] = {}
-    counts = {"beams_nan": 0, "beams_too_close": 0, "beams_no_return": 0}
     try:
         reader = any_reader([bag], default_typestore=typestore)
         reader.open()
@@ -150,42 +155,67 @@ def _read(bag: Path, topics: BagTopics, layout: SensorLayout) -> tuple[dict, dic
                 )
             conns += [c for c in reader.connections if c.topic == topic]
         key_of = {topic: key for key, topic in wanted.items()}
-        geometry: tuple = ()
-        index = np.zeros(0, dtype=np.int64)
+        ros1 = not reader.is2
+        msgtype = {key: by_topic[topic].msgtype for key, topic in wanted.items()}
+
+        def flush(key: str) -> None:
+            s = streams[key]
+            raws, s.raw[:] = list(s.raw), []
+
+            def slow(i: int):
+                return reader.deserialize(raws[i], msgtype[key])
+
+            if key == "scan" and decoder == "fast":
+                s.values.append(bagcodec.decode_scans(raws, ros1, angles, slow))
+            elif key == "odom" and decoder == "fast":
+                s.values.append(bagcodec.decode_odometry(raws, ros1, slow))
+            else:
+                s.values.append(_decode_slow(key, [slow(i) for i in range(len(raws))], angles))
+            if key not in frames and raws:
+                first = slow(0)
+                if key == "odom":
+                    frames["odom"], frames["base"] = first.header.frame_id, first.child_frame_id
+                elif key == "scan":
+                    frames["scan"] = first.header.frame_id
+
         try:
             for conn, recv, raw in reader.messages(connections=conns):
                 key = key_of[conn.topic]
-                msg = reader.deserialize(raw, conn.msgtype)
                 s = streams[key]
                 s.recv.append(recv)
-                header = getattr(msg, "header", None)
-                s.stamp.append(
-                    0 if header is None else header.stamp.sec * 1_000_000_000 + header.stamp.nanosec
-                )
-                if key == "scan":
-                    g = (msg.angle_min, msg.angle_increment, len(msg.ranges))
-                    if g != geometry:
-                        geometry, index = g, _beam_index(bag, angles, *g)
-                        frames.setdefault("scan", header.frame_id)
-                    s.values.append(
-                        _readings(msg.ranges[index], msg.range_min, msg.range_max, layout, counts)
-                    )
-                elif key == "odom":
-                    p, q = msg.pose.pose.position, msg.pose.pose.orientation
-                    yaw = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
-                    s.values.append((p.x, p.y, yaw))
-                    if "odom" not in frames:
-                        frames["odom"], frames["base"] = header.frame_id, msg.child_frame_id
-                else:
-                    twist = msg.twist if header is not None else msg
-                    s.values.append((twist.linear.x, twist.angular.z))
+                s.raw.append(raw)
+                if len(s.raw) >= CHUNK:
+                    flush(key)
+            for key in streams:
+                flush(key)
         except InputError:
             raise
         except Exception as err:  # a truncated or damaged bag, a message that does not decode
             raise InputError(f"{bag}: damaged or truncated bag ({_why(err)})") from None
     finally:
         reader.close()
-    return streams, frames, counts
+    return streams, frames
+
+
+def _decode_slow(key: str, msgs: list, angles: np.ndarray):
+    """The generic path: messages decoded by rosbags, read field by field."""
+    from sensorimotor.sim import bagcodec
+
+    if key == "scan":
+        out = bagcodec.decode_scans([b""] * len(msgs), False, angles, msgs.__getitem__)
+        return out
+    if key == "odom":
+        return bagcodec.decode_odometry([b""] * len(msgs), False, msgs.__getitem__)
+    values = []
+    for m in msgs:
+        twist = m.twist if hasattr(m, "header") else m
+        stamp = (
+            m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec
+            if hasattr(m, "header")
+            else 0
+        )
+        values.append((stamp, twist.linear.x, twist.angular.z))
+    return np.array(values, dtype=np.float64).reshape(-1, 3)
 
 
 def _why(err: Exception) -> str:
@@ -193,44 +223,13 @@ def _why(err: Exception) -> str:
     return f"{type(err).__name__}: {text[0]}" if text else type(err).__name__
 
 
-def _beam_index(bag: Path, angles: np.ndarray, angle_min: float, inc: float, n: int) -> np.ndarray:
-    """(R,) the beam nearest to each ray's angle; InputError when the scan does not reach one."""
-    if n == 0 or not (math.isfinite(angle_min) and math.isfinite(inc)) or inc == 0:
-        raise InputError(
-            f"{bag}: a scan with {n} beams, angle_min {angle_min:g}, angle_increment {inc:g}"
-        )
-    index = np.rint((angles - angle_min) / inc).astype(np.int64)
-    bad = (index < 0) | (index >= n)
-    if bad.any():
-        lo, hi = sorted((angle_min, angle_min + inc * (n - 1)))
-        raise InputError(
-            f"{bag}: the scans cover angles {lo:.3f}..{hi:.3f} rad, the layout's ray at "
-            f"{angles[bad][0]:g} rad lies outside (choose --fov within them)"
-        )
-    return index
-
-
-def _readings(beams, range_min: float, range_max: float, layout: SensorLayout, counts: dict):
-    """The layout's readings of one scan (REP 117), or None when one of them is invalid."""
-    r = np.asarray(beams, dtype=np.float64)
-    nan = np.isnan(r)
-    close = (r < range_min) & ~nan  # -inf included
-    far = (r > range_max) & ~nan  # +inf included
-    if nan.any() or close.any():
-        counts["beams_nan"] += int(nan.sum())
-        counts["beams_too_close"] += int(close.sum())
-        return None
-    counts["beams_no_return"] += int(far.sum())
-    return np.minimum(np.where(far, layout.max_range, r), layout.max_range)
-
-
-def _clock(bag: Path, name: str, s: _Stream, counts: dict, clocks: dict) -> tuple:
+def _clock(bag: Path, name: str, stamp, recv, counts: dict, clocks: dict) -> tuple:
     """Times (ns, int64) and the order that sorts them: header stamps, or receive times when a
     topic has no stamps. Out-of-order messages are counted; a jump back is refused."""
-    ns = np.asarray(s.stamp, dtype=np.int64)
+    ns = np.asarray(stamp, dtype=np.int64)
     clocks[name] = "header stamps"
     if not ns.any():
-        ns = np.asarray(s.recv, dtype=np.int64)
+        ns = np.asarray(recv, dtype=np.int64)
         clocks[name] = "bag receive times"
     if len(ns) > 1:
         back = np.maximum.accumulate(ns)[:-1] - ns[1:]  # how far each is before the latest
@@ -244,17 +243,50 @@ def _clock(bag: Path, name: str, s: _Stream, counts: dict, clocks: dict) -> tupl
     return ns, np.argsort(ns, kind="stable")
 
 
+def _rep117(bag: Path, scans, layout: SensorLayout, counts: dict) -> tuple:
+    """Readings (K, R) and whether each scan is valid (REP 117: NaN and below range_min, -inf
+    included, invalid; above range_max, +inf included, no return: the range); InputError for a
+    scan whose angles do not reach a ray."""
+    if not scans.covered.all():
+        i = int(np.argmin(scans.covered))
+        lo, hi = np.sort(scans.span[i])
+        outside = [a for a in layout.angles if not lo - 1e-9 <= a <= hi + 1e-9]
+        what = f"ray at {outside[0]:g} rad lies outside" if outside else "rays are not reached"
+        raise InputError(
+            f"{bag}: the scans cover angles {lo:.3f}..{hi:.3f} rad, the layout's {what} "
+            "(choose --fov within them)"
+        )
+    b = scans.beams
+    nan = np.isnan(b)
+    close = (b < scans.range_min[:, None]) & ~nan  # -inf included
+    far = (b > scans.range_max[:, None]) & ~nan  # +inf included
+    valid = ~(nan | close).any(axis=1)
+    counts["beams_nan"] = int(nan.sum())
+    counts["beams_too_close"] = int(close.sum())
+    counts["beams_no_return"] = int(far[valid].sum())
+    readings = np.minimum(np.where(far | ~valid[:, None], layout.max_range, b), layout.max_range)
+    return readings, valid
+
+
+def _concat(chunks: list, cls):
+    return cls(*(np.concatenate([getattr(c, f) for c in chunks]) for f in cls.__dataclass_fields__))
+
+
 def import_bag(
     bag: str | Path,
     topics: BagTopics = BagTopics(),
     layout: SensorLayout = DEFAULT_LAYOUT,
     rate: float | None = None,
     world: World | None = None,
+    decoder: str = "fast",
 ) -> Database:
     """Read ``bag`` (a ROS 1 ``.bag``, a ROS 2 bag folder or ``.mcap``) into a Database: one row
     per slot of the ``rate`` grid (see the module docstring for every rule), the meta recording
     the bag, its topics and frames, and what was dropped. InputError, one line, for a bag that
-    cannot be made into one."""
+    cannot be made into one. ``decoder="rosbags"`` decodes every message with rosbags (the
+    reference ``bagcodec``'s bulk reading is checked against; slower, the same database)."""
+    from sensorimotor.sim.bagcodec import Poses, Scans
+
     bag = Path(bag)
     if not bag.exists():
         raise InputError(f"{bag}: bag not found")
@@ -265,21 +297,25 @@ def import_bag(
         )
     if rate is not None and not (math.isfinite(rate) and rate > 0):
         raise InputError(f"--rate must be a positive number of Hz, got {rate}")
-    streams, frames, counts = _read(bag, topics, layout)
+    if decoder not in ("fast", "rosbags"):
+        raise ValueError(f"decoder must be 'fast' or 'rosbags', got {decoder!r}")
+    streams, frames = _read(bag, topics, layout, decoder)
     for key, s in streams.items():
-        if not s.values:
+        if not s.recv:
             raise InputError(f"{bag}: topic {getattr(topics, key)!r} has no messages")
+    counts: dict = {}
     clocks: dict[str, str] = {}
-    ns, order = _clock(bag, "scan", streams["scan"], counts, clocks)
+    scans = _concat(streams["scan"].values, Scans)
+    ns, order = _clock(bag, "scan", scans.stamp, streams["scan"].recv, counts, clocks)
     origin = int(ns[order[0]])  # the first scan's stamp: times are seconds after it
 
     def seconds(ns: np.ndarray) -> np.ndarray:
         return (ns - origin) / 1e9
 
-    scans = [streams["scan"].values[i] for i in order]
+    readings, valid = _rep117(bag, scans, layout, counts)
+    readings, valid = readings[order], valid[order]
     ts = seconds(ns[order])
-    valid = np.array([v is not None for v in scans])
-    counts["scans"] = len(scans)
+    counts["scans"] = len(ts)
     counts["scans_invalid"] = int((~valid).sum())
     if len(ts) > 1:
         dt = np.diff(ts)
@@ -291,9 +327,13 @@ def import_bag(
         if step <= 0:
             raise InputError(f"{bag}: fewer than two scans at distinct times: give --rate")
         rate = 1.0 / step
-    ts, scans = ts[valid], [v for v in scans if v is not None]
-    if len(scans) < 2:
-        raise InputError(f"{bag}: {len(scans)} valid scans (of {counts['scans']}); need 2 or more")
+    ts, readings = ts[valid], readings[valid]
+    if len(ts) < 2:
+        raise InputError(
+            f"{bag}: {len(ts)} valid scans of {counts['scans']} (a reading on a ray NaN, -inf "
+            f"or below range_min: {counts['beams_nan']:,} NaN, {counts['beams_too_close']:,} "
+            "too close); need 2 or more"
+        )
     t0 = ts[0]
     slot = np.rint((ts - t0) * rate).astype(np.int64)  # (S,) grid slot of each valid scan
     off = np.abs(ts - (t0 + slot / rate))
@@ -302,15 +342,15 @@ def import_bag(
     keep = pick[np.r_[True, slot[pick][1:] != slot[pick][:-1]]]
     counts["scans_merged"] = len(slot) - len(keep)
     slot, t = slot[keep], ts[keep]
-    sensors = np.stack([scans[i] for i in keep])  # (K, R) float64
+    sensors = readings[keep]  # (K, R) float64
     jumps = np.diff(slot)
     counts["gaps"] = int((jumps > 1).sum())
     counts["slots_empty"] = int((jumps - 1).sum())
     counts["rows_without_next"] = int((jumps > 1).sum()) + 1  # before a gap, and the last
 
-    to, oo = _clock(bag, "odom", streams["odom"], counts, clocks)
-    odom = np.asarray(streams["odom"].values, dtype=np.float64)[oo]  # (O, 3)
-    to = seconds(to[oo])
+    odom = _concat(streams["odom"].values, Poses)
+    to, oo = _clock(bag, "odom", odom.stamp, streams["odom"].recv, counts, clocks)
+    to, odom = seconds(to[oo]), odom.pose[oo]  # (O,), (O, 3)
     pose, covered = _interpolate(to, odom, t)  # (K, 3), (K,) bool
     has_next = np.r_[jumps == 1, False]
     ok = has_next & covered & np.r_[covered[1:], False]
@@ -326,9 +366,9 @@ def import_bag(
         counts["max_sideways_drift"] = float(np.abs(lateral[ok]).max()) if ok.any() else 0.0
         how = "odometry: d = displacement along the heading, r = change of heading, to the next row"
     else:
-        tc, oc = _clock(bag, "cmd", streams["cmd"], counts, clocks)
-        cmd = np.asarray(streams["cmd"].values, dtype=np.float64)[oc]
-        tc = seconds(tc[oc])
+        cmd = np.concatenate(streams["cmd"].values)  # (C, 3) stamp, linear.x, angular.z
+        tc, oc = _clock(bag, "cmd", cmd[:, 0], streams["cmd"].recv, counts, clocks)
+        tc, cmd = seconds(tc[oc]), cmd[oc, 1:]
         j = np.searchsorted(tc, t, side="right") - 1  # the last command at or before each row
         sent = j >= 0
         counts["rows_before_first_cmd"] = int((ok & ~sent).sum())
