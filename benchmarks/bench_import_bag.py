@@ -18,8 +18,9 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
+from sensorimotor.sim.bagcodec import FORMATS, write_bag
 from sensorimotor.sim.database import generate
-from sensorimotor.sim.rosbag import FORMATS, import_bag, write_bag
+from sensorimotor.sim.rosbag import import_bag
 from sensorimotor.sim.world import load_world
 from sensorimotor.version import __version__
 

@@ -21,16 +21,10 @@ pytest.importorskip("rosbags")
 
 from conftest import assert_one_line_error, run_cli
 from sensorimotor.errors import InputError
+from sensorimotor.sim.bagcodec import INSTALL_HINT, scan_geometry, write_bag
 from sensorimotor.sim.core import DEFAULT_LAYOUT, SensorLayout
 from sensorimotor.sim.database import Database, generate, load_database, save_database
-from sensorimotor.sim.rosbag import (
-    INSTALL_HINT,
-    BagTopics,
-    import_bag,
-    ray_layout,
-    scan_geometry,
-    write_bag,
-)
+from sensorimotor.sim.rosbag import BagTopics, import_bag, ray_layout
 from sensorimotor.sim.world import load_world, world_from_dict
 
 N = 3000  # rows of the simulated run (a few seconds to write and read)

@@ -46,17 +46,14 @@ from pathlib import Path
 import numpy as np
 
 from sensorimotor.errors import InputError
+from sensorimotor.sim.bagcodec import CMD_TYPES, ODOM_TYPES, SCAN_TYPES, rosbags_reader
 from sensorimotor.sim.core import DEFAULT_LAYOUT, SensorLayout
 from sensorimotor.sim.database import ARRAYS, Database
 from sensorimotor.sim.world import BUILTIN_WORLDS, World
 from sensorimotor.version import __version__
 
-INSTALL_HINT = "install the [ros] extra: pip install -e '.[ros]'"
 MAX_BACK_JUMP_S = 1.0  # s: a stamp this far before an earlier one is a clock jump, not jitter
 MAX_ODOM_GAP_S = 1.0  # s: no pose is interpolated between odometry messages further apart
-SCAN_TYPES = ("sensor_msgs/msg/LaserScan",)
-ODOM_TYPES = ("nav_msgs/msg/Odometry",)
-CMD_TYPES = ("geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped")
 
 
 @dataclass(frozen=True)
@@ -92,16 +89,6 @@ def summary(db: Database) -> str:
     )
 
 
-def _rosbags():
-    """The ``rosbags`` reader, or an InputError telling how to install it."""
-    try:
-        from rosbags.highlevel import AnyReader
-        from rosbags.typesys import Stores, get_typestore
-    except ImportError:
-        raise InputError(INSTALL_HINT) from None
-    return AnyReader, get_typestore(Stores.ROS2_HUMBLE)
-
-
 def bag_format(path: Path) -> str:
     """``rosbag1``, ``rosbag2/sqlite3`` or ``rosbag2/mcap``, from the bag's files."""
     if path.is_dir():
@@ -128,7 +115,7 @@ def _read(bag: Path, topics: BagTopics, layout: SensorLayout, decoder: str) -> t
     """Every message of the three topics, decoded to the few numbers a row needs."""
     from sensorimotor.sim import bagcodec
 
-    any_reader, typestore = _rosbags()
+    any_reader, typestore = rosbags_reader()
     angles = np.asarray(layout.angles, dtype=np.float64)
     wanted = {"scan": topics.scan, "odom": topics.odom}
     if topics.cmd is not None:
@@ -327,6 +314,11 @@ def import_bag(
         if step <= 0:
             raise InputError(f"{bag}: fewer than two scans at distinct times: give --rate")
         rate = 1.0 / step
+    elif step > 0 and rate > 1.5 / step:
+        raise InputError(
+            f"{bag}: --rate {rate:g} Hz is above the scans' {1 / step:.4g} Hz (a row a scan at "
+            "most: every other slot would be empty)"
+        )
     ts, readings = ts[valid], readings[valid]
     if len(ts) < 2:
         raise InputError(
@@ -459,117 +451,3 @@ def bag_name(bag: Path) -> str:
     name = re.sub(r"[^A-Za-z0-9_.+-]+", "-", bag.stem if bag.is_file() else bag.name)
     name = name.strip("_.+-") or "bag"
     return f"{name}-bag" if name in BUILTIN_WORLDS else name
-
-
-FORMATS = ("rosbag2/sqlite3", "rosbag2/mcap", "rosbag1")
-BAG_START_NS = 1_700_000_000_000_000_000  # the first stamp of a written bag (ns since 1970)
-
-
-def scan_geometry(layout: SensorLayout, beams: int) -> tuple[float, float]:
-    """``(angle_min, angle_increment)`` of a ``beams``-beam scan, centred on the heading, one of
-    whose beams lies on each of ``layout``'s rays (so that a written bag reads back exactly):
-    the increment divides the rays' smallest spacing (about a degree for 360 beams)."""
-    angles = np.sort(np.asarray(layout.angles, dtype=np.float64))
-    spacing = float(np.diff(angles).min()) if len(angles) > 1 else 2 * math.pi / beams
-    inc = spacing / max(1, round(spacing / (2 * math.pi / beams)))
-    return -(beams // 2) * inc, inc
-
-
-def write_bag(
-    db: Database,
-    path: str | Path,
-    fmt: str = "rosbag2/sqlite3",
-    rate: float = 10.0,
-    beams: int = 360,
-    cmd: bool = False,
-    times: np.ndarray | None = None,
-    received: np.ndarray | None = None,
-) -> Path:
-    """Write ``db`` as a ROS bag of ``fmt`` (one of FORMATS) that ``import_bag`` reads back to
-    the same rows (but the last, whose step leads nowhere recorded): ``/scan`` LaserScans of
-    ``beams`` beams (``scan_geometry``) whose beams on the layout's rays hold the readings (the
-    range as ``+inf``, no return, REP 117) and the others NaN (not measured), and ``/odom``
-    Odometry with each row's pose, both stamped at ``rate`` Hz; with ``cmd``, ``/cmd_vel`` Twists
-    ``(d, r) * rate``. ``times`` (N,) stamps the rows elsewhere (seconds after the first's
-    default, ``row / rate``: gaps, clock jumps) and ``received`` the times the recorder got
-    them (default ``times``; readers yield messages in this order: disorder). For tests,
-    benchmarks, and ROS tools that want a simulated run."""
-    if fmt not in FORMATS:
-        raise InputError(f"unknown bag format {fmt!r}: use one of {', '.join(FORMATS)}")
-    _rosbags()  # the install hint when the extra is missing
-    from rosbags.typesys import Stores, get_typestore
-
-    ros1 = fmt == "rosbag1"
-    ts = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
-    T = ts.types
-    msg = {k: T[k].__msgtype__ for k in (*SCAN_TYPES, *ODOM_TYPES, CMD_TYPES[0])}
-    serialize = ts.serialize_ros1 if ros1 else ts.serialize_cdr
-    angle_min, inc = scan_geometry(db.layout, beams)
-    index = np.rint((np.asarray(db.layout.angles) - angle_min) / inc).astype(np.int64)
-    ranges = np.full((len(db), beams), np.nan, dtype=np.float32)
-    ranges[:, index] = np.where(db.sensors >= db.max_range, np.inf, db.sensors)
-    if times is None:
-        times = np.arange(len(db)) / rate
-    stamps = BAG_START_NS + np.rint(np.asarray(times, dtype=np.float64) * 1e9).astype(np.int64)
-    if received is None:
-        received = times
-    recv = BAG_START_NS + np.rint(np.asarray(received, dtype=np.float64) * 1e9).astype(np.int64)
-    path = Path(path)
-    if path.exists():
-        raise InputError(f"{path}: exists already; a bag is not overwritten")
-    if ros1:
-        from rosbags.rosbag1 import Writer
-
-        writer = Writer(path)
-    else:
-        from rosbags.rosbag2 import StoragePlugin, Writer
-
-        plugin = StoragePlugin.MCAP if fmt.endswith("mcap") else StoragePlugin.SQLITE3
-        writer = Writer(path, version=9, storage_plugin=plugin)
-    vec, zero36 = T["geometry_msgs/msg/Vector3"], np.zeros(36)
-    with writer:
-        cs = writer.add_connection("/scan", SCAN_TYPES[0], typestore=ts)
-        co = writer.add_connection("/odom", ODOM_TYPES[0], typestore=ts)
-        cc = writer.add_connection("/cmd_vel", CMD_TYPES[0], typestore=ts) if cmd else None
-        for i in range(len(db)):
-            ns, at = int(stamps[i]), int(recv[i])
-            stamp = T["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
-
-            def header(frame: str, stamp=stamp, i=i):
-                extra = {"seq": i} if ros1 else {}
-                return T["std_msgs/msg/Header"](stamp=stamp, frame_id=frame, **extra)
-
-            scan = T[SCAN_TYPES[0]](
-                header=header("base_scan"),
-                angle_min=angle_min,
-                angle_max=angle_min + inc * (beams - 1),
-                angle_increment=inc,
-                time_increment=0.0,
-                scan_time=1.0 / rate,
-                range_min=0.0,
-                range_max=float(db.max_range),
-                ranges=ranges[i],
-                intensities=np.zeros(0, dtype=np.float32),
-            )
-            writer.write(cs, at, serialize(scan, msg[SCAN_TYPES[0]]))
-            x, y, h = (float(v) for v in db.poses[i])
-            d, r = (float(v) * rate for v in db.motors[i])
-            twist = T["geometry_msgs/msg/Twist"](
-                linear=vec(x=d, y=0.0, z=0.0), angular=vec(x=0.0, y=0.0, z=r)
-            )
-            pose = T["geometry_msgs/msg/Pose"](
-                position=T["geometry_msgs/msg/Point"](x=x, y=y, z=0.0),
-                orientation=T["geometry_msgs/msg/Quaternion"](
-                    x=0.0, y=0.0, z=math.sin(h / 2), w=math.cos(h / 2)
-                ),
-            )
-            odom = T[ODOM_TYPES[0]](
-                header=header("odom"),
-                child_frame_id="base_link",
-                pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=zero36),
-                twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=twist, covariance=zero36),
-            )
-            writer.write(co, at, serialize(odom, msg[ODOM_TYPES[0]]))
-            if cc is not None:
-                writer.write(cc, at, serialize(twist, msg[CMD_TYPES[0]]))
-    return path
