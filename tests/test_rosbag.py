@@ -91,7 +91,12 @@ def test_a_ros2_bag_imports_back_to_the_same_database(sim_db, bags):
     assert db.meta["world"] == {"name": "run2"}
     assert not db.has_walls
     assert db.meta["sensor_layout"] == DEFAULT_LAYOUT.to_dict()
-    assert src["frames"] == {"scan": "base_scan", "odom": "odom", "base": "base_link"}
+    assert src["frames"] == {
+        "scan": "base_scan",
+        "odom": "odom",
+        "base": "base_link",
+        "poses": "odom",
+    }
     assert src["rate_hz"] == pytest.approx(10.0, rel=1e-9)
     c = src["counts"]
     assert c["scans"] == N
@@ -342,3 +347,19 @@ def test_bulk_decoding_reads_scans_and_odometry_of_any_frame_names_and_beam_coun
         p, q = m.pose.pose.position, m.pose.pose.orientation
         yaw = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
         np.testing.assert_allclose(pos.pose[i], [p.x, p.y, yaw], rtol=0, atol=1e-12)
+
+
+def test_poses_in_the_map_frame_come_from_tf_composed_with_odometry(sim_db, tmp_path):
+    """/odom in a frame turned and shifted from the map, /tf map -> odom: --frame map gives the
+    map poses back (and fits the world), the commands stay the motion odometry saw."""
+    bag = write_bag(sim_db, tmp_path / "tf", odom_frame=(7.0, -4.0, 2.5))
+    in_odom = import_bag(bag)
+    assert np.abs(in_odom.poses[:, :2] - sim_db.poses[: N - 1, :2]).max() > 1  # another frame
+    in_map = import_bag(bag, BagTopics(frame="map"), world=load_world("square"))
+    assert_same_rows(in_map, sim_db, np.arange(N - 1))
+    assert in_map.meta["source"]["frames"]["poses"] == "map"
+    np.testing.assert_allclose(in_odom.motors[:, 0], in_map.motors[:, 0], atol=TOL, rtol=0)
+    with pytest.raises(InputError, match="no transform base -> odom"):
+        import_bag(bag, BagTopics(frame="base"))
+    with pytest.raises(InputError, match="lies outside the 50 x 50 world 'square'"):
+        import_bag(bag, world=load_world("square"))

@@ -91,6 +91,7 @@ def import_bag(
     range_: Annotated[float, typer.Option("--range", help="Reading of no return.")] = 10.0,
     rate: Annotated[float | None, typer.Option(help="Rows/s (default: the scans').")] = None,
     world: Annotated[str | None, typer.Option(help="World of the poses' frame.")] = None,
+    frame: Annotated[str | None, typer.Option(help="Poses in this /tf frame (map).")] = None,
 ) -> None:
     """Make a database of a real robot's recording: laser scans, odometry (see sim/rosbag.py)."""
     from sensorimotor.files import check_writable
@@ -101,7 +102,7 @@ def import_bag(
     layout = rosbag.ray_layout(rays, fov, range_)
     w = load_world(world) if world is not None else None
     check_writable(out)
-    db = rosbag.import_bag(bag, rosbag.BagTopics(scan, odom, cmd), layout, rate, w)
+    db = rosbag.import_bag(bag, rosbag.BagTopics(scan, odom, cmd, frame), layout, rate, w)
     save_database(db, out)
     err_console.print(f"wrote {out}: {rosbag.summary(db)}")
 

@@ -229,6 +229,7 @@ def write_bag(
     cmd: bool = False,
     times: np.ndarray | None = None,
     received: np.ndarray | None = None,
+    odom_frame: tuple[float, float, float] | None = None,
 ) -> Path:
     """Write ``db`` as a ROS bag of ``fmt`` (one of FORMATS) that ``import_bag`` reads back to
     the same rows (but the last, whose step leads nowhere recorded): ``/scan`` LaserScans of
@@ -237,8 +238,11 @@ def write_bag(
     Odometry with each row's pose, both stamped at ``rate`` Hz; with ``cmd``, ``/cmd_vel`` Twists
     ``(d, r) * rate``. ``times`` (N,) stamps the rows elsewhere (seconds after the first's
     default, ``row / rate``: gaps, clock jumps) and ``received`` the times the recorder got
-    them (default ``times``; readers yield messages in this order: disorder). For tests,
-    benchmarks, and ROS tools that want a simulated run."""
+    them (default ``times``; readers yield messages in this order: disorder). With
+    ``odom_frame`` (x, y, yaw: where the odometry frame ``odom`` lies in the database's frame,
+    ``map``; ROS 2 only), ``/odom`` holds the poses in ``odom`` and ``/tf`` the transform
+    ``map`` -> ``odom`` at each row. For tests, benchmarks, and ROS tools that want a simulated
+    run."""
     if fmt not in FORMATS:
         raise InputError(f"unknown bag format {fmt!r}: use one of {', '.join(FORMATS)}")
     rosbags_reader()  # the install hint when the extra is missing
@@ -276,6 +280,13 @@ def write_bag(
         cs = writer.add_connection("/scan", SCAN_TYPES[0], typestore=ts)
         co = writer.add_connection("/odom", ODOM_TYPES[0], typestore=ts)
         cc = writer.add_connection("/cmd_vel", CMD_TYPES[0], typestore=ts) if cmd else None
+        tf_type = "tf2_msgs/msg/TFMessage"
+        ct = writer.add_connection("/tf", tf_type, typestore=ts) if odom_frame else None
+        if odom_frame is not None:
+            if ros1:
+                raise InputError("write_bag: odom_frame is written in ROS 2 bags only")
+            ox, oy, oyaw = odom_frame
+            co_, so_ = math.cos(oyaw), math.sin(oyaw)
         for i in range(len(db)):
             ns, at = int(stamps[i]), int(recv[i])
             stamp = T["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
@@ -298,6 +309,21 @@ def write_bag(
             )
             writer.write(cs, at, serialize(scan, msg[SCAN_TYPES[0]]))
             x, y, h = (float(v) for v in db.poses[i])
+            if ct is not None:  # the pose in odom: the inverse of map -> odom applied
+                dx, dy = x - ox, y - oy
+                x, y, h = co_ * dx + so_ * dy, -so_ * dx + co_ * dy, h - oyaw
+                h = math.atan2(math.sin(h), math.cos(h))
+                tr = T["geometry_msgs/msg/TransformStamped"](
+                    header=header("map"),
+                    child_frame_id="odom",
+                    transform=T["geometry_msgs/msg/Transform"](
+                        translation=vec(x=ox, y=oy, z=0.0),
+                        rotation=T["geometry_msgs/msg/Quaternion"](
+                            x=0.0, y=0.0, z=math.sin(oyaw / 2), w=math.cos(oyaw / 2)
+                        ),
+                    ),
+                )
+                writer.write(ct, at, serialize(T[tf_type](transforms=[tr]), tf_type))
             d, r = (float(v) * rate for v in db.motors[i])
             twist = T["geometry_msgs/msg/Twist"](
                 linear=vec(x=d, y=0.0, z=0.0), angular=vec(x=0.0, y=0.0, z=r)

@@ -23,6 +23,10 @@ How the rows are made:
   (the yaw unwrapped) at each row's scan stamp, in the odometry frame (``meta.source.frames``).
   A row outside the odometry's time span, or between two odometry messages further apart than
   ``MAX_ODOM_GAP_S``, is dropped (counted). The laser is taken to sit at the robot's origin.
+  With ``frame`` (``map``, say), the transform from it to the odometry frame on ``/tf`` (or
+  ``/tf_static``: what a localiser such as amcl or slam_toolbox publishes), interpolated the
+  same way, is composed with the odometry pose; a row without it is dropped (counted). The
+  commands stay odometry's: the motion executed, not the localiser's corrections.
 - **Commands** ``(d, r)``: by default the motion executed between a row and the next, in the
   simulator's terms (``sim.core.apply_motor``: move ``d`` along the heading, then turn ``r``):
   ``d`` the displacement projected on the heading (negative when reversing; sideways drift,
@@ -47,6 +51,7 @@ import numpy as np
 
 from sensorimotor.errors import InputError
 from sensorimotor.sim.bagcodec import CMD_TYPES, ODOM_TYPES, SCAN_TYPES, rosbags_reader
+from sensorimotor.sim.bagcodec import yaw as bagcodec_yaw
 from sensorimotor.sim.core import DEFAULT_LAYOUT, SensorLayout
 from sensorimotor.sim.database import ARRAYS, Database
 from sensorimotor.sim.world import BUILTIN_WORLDS, World
@@ -54,15 +59,20 @@ from sensorimotor.version import __version__
 
 MAX_BACK_JUMP_S = 1.0  # s: a stamp this far before an earlier one is a clock jump, not jitter
 MAX_ODOM_GAP_S = 1.0  # s: no pose is interpolated between odometry messages further apart
+MAX_TF_GAP_S = 5.0  # s: the same for /tf's transform to the odometry frame (published slower)
+TF_TOPICS = ("/tf", "/tf_static")
 
 
 @dataclass(frozen=True)
 class BagTopics:
-    """The topics to read (``cmd``: None takes the commands from odometry)."""
+    """The topics to read (``cmd``: None takes the commands from odometry) and the frame of the
+    poses (``frame``: None keeps odometry's; else /tf's ``frame`` -> odometry frame transform is
+    composed with odometry, e.g. ``map``)."""
 
     scan: str = "/scan"
     odom: str = "/odom"
     cmd: str | None = None
+    frame: str | None = None
 
 
 def ray_layout(rays: int = 5, fov: float = 1.2, max_range: float = 10.0) -> SensorLayout:
@@ -142,6 +152,15 @@ def _read(bag: Path, topics: BagTopics, layout: SensorLayout, decoder: str) -> t
                 )
             conns += [c for c in reader.connections if c.topic == topic]
         key_of = {topic: key for key, topic in wanted.items()}
+        tf: list = []  # (static, stamp ns, child, x, y, yaw) of each transform from the frame
+        if topics.frame is not None:
+            tf_conns = [c for c in reader.connections if c.topic in TF_TOPICS]
+            if not tf_conns:
+                raise InputError(f"{bag}: no /tf or /tf_static topic, which --frame needs")
+            for c in tf_conns:
+                if not c.msgtype.endswith("/TFMessage"):
+                    raise InputError(f"{bag}: topic {c.topic!r} is {c.msgtype}, not TFMessage")
+            conns += tf_conns
         ros1 = not reader.is2
         msgtype = {key: by_topic[topic].msgtype for key, topic in wanted.items()}
 
@@ -167,6 +186,9 @@ def _read(bag: Path, topics: BagTopics, layout: SensorLayout, decoder: str) -> t
 
         try:
             for conn, recv, raw in reader.messages(connections=conns):
+                if conn.topic in TF_TOPICS:
+                    _transforms(reader.deserialize(raw, conn.msgtype), conn.topic, topics, tf)
+                    continue
                 key = key_of[conn.topic]
                 s = streams[key]
                 s.recv.append(recv)
@@ -181,7 +203,45 @@ def _read(bag: Path, topics: BagTopics, layout: SensorLayout, decoder: str) -> t
             raise InputError(f"{bag}: damaged or truncated bag ({_why(err)})") from None
     finally:
         reader.close()
-    return streams, frames
+    return streams, frames, tf
+
+
+def _transforms(msg, topic: str, topics: BagTopics, out: list) -> None:
+    """Keep the transforms of a tf2_msgs/TFMessage whose parent is ``topics.frame``."""
+    for tr in msg.transforms:
+        if tr.header.frame_id.lstrip("/") == topics.frame.lstrip("/"):
+            v, q = tr.transform.translation, tr.transform.rotation
+            stamp = tr.header.stamp.sec * 1_000_000_000 + tr.header.stamp.nanosec
+            yaw = bagcodec_yaw(q.x, q.y, q.z, q.w)
+            out.append((topic == "/tf_static", stamp, tr.child_frame_id.lstrip("/"), v.x, v.y, yaw))
+
+
+def _to_frame(bag: Path, frame: str, odom_frame: str, tf: list, t, pose, seconds) -> tuple:
+    """Poses (K, 3) in ``frame``: the /tf transform ``frame`` -> ``odom_frame`` at each time
+    ``t`` (a static one, or interpolated between two at most MAX_TF_GAP_S apart) composed with
+    the odometry ``pose``; and whether each time has one."""
+    mine = [row for row in tf if row[2] == odom_frame.lstrip("/")]
+    if frame.lstrip("/") == odom_frame.lstrip("/"):
+        return pose, np.ones(len(t), dtype=bool)
+    if not mine:
+        seen = sorted({row[2] for row in tf}) or ["none"]
+        raise InputError(
+            f"{bag}: no transform {frame} -> {odom_frame} (the odometry's frame) on /tf or "
+            f"/tf_static; children of {frame}: {', '.join(seen)}"
+        )
+    static = [row for row in mine if row[0]]
+    if static:
+        _, _, _, x, y, yaw = static[-1]
+        trans, covered = np.tile([x, y, yaw], (len(t), 1)), np.ones(len(t), dtype=bool)
+    else:
+        a = np.array([row[1:2] + row[3:] for row in mine], dtype=np.float64)  # stamp, x, y, yaw
+        a = a[np.argsort(a[:, 0], kind="stable")]
+        a[:, 0] = seconds(a[:, 0].astype(np.int64))
+        trans, covered = _interpolate(a[:, 0], a[:, 1:], t, MAX_TF_GAP_S)
+    c, s_ = np.cos(trans[:, 2]), np.sin(trans[:, 2])
+    x = trans[:, 0] + c * pose[:, 0] - s_ * pose[:, 1]
+    y = trans[:, 1] + s_ * pose[:, 0] + c * pose[:, 1]
+    return np.stack([x, y, _wrap(trans[:, 2] + pose[:, 2])], axis=1), covered
 
 
 def _decode_slow(key: str, msgs: list, angles: np.ndarray):
@@ -286,7 +346,7 @@ def import_bag(
         raise InputError(f"--rate must be a positive number of Hz, got {rate}")
     if decoder not in ("fast", "rosbags"):
         raise ValueError(f"decoder must be 'fast' or 'rosbags', got {decoder!r}")
-    streams, frames = _read(bag, topics, layout, decoder)
+    streams, frames, tf = _read(bag, topics, layout, decoder)
     for key, s in streams.items():
         if not s.recv:
             raise InputError(f"{bag}: topic {getattr(topics, key)!r} has no messages")
@@ -368,6 +428,11 @@ def import_bag(
         j = np.maximum(j, 0)
         d, r = cmd[j, 0] * dt_next, cmd[j, 1] * dt_next
         how = f"{topics.cmd}: d = linear.x * dt, r = angular.z * dt, dt to the next row"
+    if topics.frame is not None:  # the commands stay odometry's: the motion executed
+        pose, known = _to_frame(bag, topics.frame, frames["odom"], tf, t, pose, seconds)
+        counts["rows_without_transform"] = int((ok & ~known).sum())
+        ok &= known
+    frames["poses"] = topics.frame if topics.frame is not None else frames["odom"]
     rows = np.flatnonzero(ok)
     if len(rows) == 0:
         raise InputError(
@@ -395,7 +460,12 @@ def import_bag(
             "kind": "rosbag",
             "bag": str(bag),
             "format": bag_format(bag),
-            "topics": {"scan": topics.scan, "odom": topics.odom, "cmd": topics.cmd},
+            "topics": {
+                "scan": topics.scan,
+                "odom": topics.odom,
+                "cmd": topics.cmd,
+                "tf": list(TF_TOPICS) if topics.frame is not None else None,
+            },
             "frames": frames,
             "clocks": clocks,
             "rate_hz": float(rate),
@@ -410,9 +480,9 @@ def import_bag(
     return Database(*(a.astype(np.float32) for a in arrays), meta=meta)
 
 
-def _interpolate(to: np.ndarray, odom: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _interpolate(to, odom: np.ndarray, t, gap: float = MAX_ODOM_GAP_S) -> tuple:
     """Poses (K, 3) at times ``t`` from odometry (O, 3) at times ``to`` (sorted), and whether each
-    time lies between two odometry messages at most MAX_ODOM_GAP_S apart."""
+    time lies between two odometry messages at most ``gap`` seconds apart."""
     yaw = np.unwrap(odom[:, 2])
     pose = np.stack(
         [np.interp(t, to, odom[:, 0]), np.interp(t, to, odom[:, 1]), _wrap(np.interp(t, to, yaw))],
@@ -420,7 +490,7 @@ def _interpolate(to: np.ndarray, odom: np.ndarray, t: np.ndarray) -> tuple[np.nd
     )
     hi = np.clip(np.searchsorted(to, t, side="left"), 0, len(to) - 1)
     lo = np.clip(np.searchsorted(to, t, side="right") - 1, 0, len(to) - 1)
-    covered = (t >= to[0]) & (t <= to[-1]) & (to[hi] - to[lo] <= MAX_ODOM_GAP_S)
+    covered = (t >= to[0]) & (t <= to[-1]) & (to[hi] - to[lo] <= gap)
     return pose, covered
 
 
