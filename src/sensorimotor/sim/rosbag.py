@@ -1,7 +1,7 @@
 """Recordings of real robots: a ROS bag (2-D laser scans and odometry) made into a database.
 
 ``import_bag`` reads ROS 1 bags and ROS 2 bags (sqlite3 or MCAP) with ``rosbags`` (pure Python,
-no ROS installation; the ``[ros]`` extra, imported only here, only when a bag is read) and
+no ROS installation; the ``[ros]`` extra, imported only when a bag is read or written) and
 returns a Database that trains, evaluates and analyses as a simulated one does.
 
 How the rows are made:
@@ -50,8 +50,8 @@ from pathlib import Path
 import numpy as np
 
 from sensorimotor.errors import InputError
+from sensorimotor.sim import bagcodec
 from sensorimotor.sim.bagcodec import CMD_TYPES, ODOM_TYPES, SCAN_TYPES, rosbags_reader
-from sensorimotor.sim.bagcodec import yaw as bagcodec_yaw
 from sensorimotor.sim.core import DEFAULT_LAYOUT, SensorLayout
 from sensorimotor.sim.database import ARRAYS, Database
 from sensorimotor.sim.world import BUILTIN_WORLDS, World
@@ -112,10 +112,10 @@ CHUNK = 50_000  # messages of a topic decoded at once (bounds the raw bytes held
 
 @dataclass
 class _Stream:
-    """One topic as read, in bag order: header stamps and receive times (ns), decoded values
-    (scans: ``bagcodec.Scans``; odometry: (K, 3) poses; commands: (K, 2)), raw bytes waiting."""
+    """One topic as read, in bag order: receive times (ns), decoded chunks (scans:
+    ``bagcodec.Scans``; odometry: ``bagcodec.Poses``; commands: (K, 3) header stamp, linear.x,
+    angular.z), and the raw messages waiting to be decoded."""
 
-    stamp: list
     recv: list
     values: list
     raw: list
@@ -123,14 +123,12 @@ class _Stream:
 
 def _read(bag: Path, topics: BagTopics, layout: SensorLayout, decoder: str) -> tuple:
     """Every message of the three topics, decoded to the few numbers a row needs."""
-    from sensorimotor.sim import bagcodec
-
     any_reader, typestore = rosbags_reader()
     angles = np.asarray(layout.angles, dtype=np.float64)
     wanted = {"scan": topics.scan, "odom": topics.odom}
     if topics.cmd is not None:
         wanted["cmd"] = topics.cmd
-    streams = {k: _Stream([], [], [], []) for k in wanted}
+    streams = {k: _Stream([], [], []) for k in wanted}
     frames: dict[str, str] = {}
     try:
         reader = any_reader([bag], default_typestore=typestore)
@@ -212,7 +210,7 @@ def _transforms(msg, topic: str, topics: BagTopics, out: list) -> None:
         if tr.header.frame_id.lstrip("/") == topics.frame.lstrip("/"):
             v, q = tr.transform.translation, tr.transform.rotation
             stamp = tr.header.stamp.sec * 1_000_000_000 + tr.header.stamp.nanosec
-            yaw = bagcodec_yaw(q.x, q.y, q.z, q.w)
+            yaw = bagcodec.yaw(q.x, q.y, q.z, q.w)
             out.append((topic == "/tf_static", stamp, tr.child_frame_id.lstrip("/"), v.x, v.y, yaw))
 
 
@@ -234,10 +232,10 @@ def _to_frame(bag: Path, frame: str, odom_frame: str, tf: list, t, pose, seconds
         _, _, _, x, y, yaw = static[-1]
         trans, covered = np.tile([x, y, yaw], (len(t), 1)), np.ones(len(t), dtype=bool)
     else:
-        a = np.array([row[1:2] + row[3:] for row in mine], dtype=np.float64)  # stamp, x, y, yaw
-        a = a[np.argsort(a[:, 0], kind="stable")]
-        a[:, 0] = seconds(a[:, 0].astype(np.int64))
-        trans, covered = _interpolate(a[:, 0], a[:, 1:], t, MAX_TF_GAP_S)
+        ns = np.array([row[1] for row in mine], dtype=np.int64)
+        order = np.argsort(ns, kind="stable")
+        xyyaw = np.array([row[3:] for row in mine], dtype=np.float64)[order]  # (T, 3)
+        trans, covered = _interpolate(seconds(ns[order]), xyyaw, t, MAX_TF_GAP_S)
     c, s_ = np.cos(trans[:, 2]), np.sin(trans[:, 2])
     x = trans[:, 0] + c * pose[:, 0] - s_ * pose[:, 1]
     y = trans[:, 1] + s_ * pose[:, 0] + c * pose[:, 1]
@@ -246,8 +244,6 @@ def _to_frame(bag: Path, frame: str, odom_frame: str, tf: list, t, pose, seconds
 
 def _decode_slow(key: str, msgs: list, angles: np.ndarray):
     """The generic path: messages decoded by rosbags, read field by field."""
-    from sensorimotor.sim import bagcodec
-
     if key == "scan":
         out = bagcodec.decode_scans([b""] * len(msgs), False, angles, msgs.__getitem__)
         return out
@@ -332,8 +328,6 @@ def import_bag(
     the bag, its topics and frames, and what was dropped. InputError, one line, for a bag that
     cannot be made into one. ``decoder="rosbags"`` decodes every message with rosbags (the
     reference ``bagcodec``'s bulk reading is checked against; slower, the same database)."""
-    from sensorimotor.sim.bagcodec import Poses, Scans
-
     bag = Path(bag)
     if not bag.exists():
         raise InputError(f"{bag}: bag not found")
@@ -352,7 +346,7 @@ def import_bag(
             raise InputError(f"{bag}: topic {getattr(topics, key)!r} has no messages")
     counts: dict = {}
     clocks: dict[str, str] = {}
-    scans = _concat(streams["scan"].values, Scans)
+    scans = _concat(streams["scan"].values, bagcodec.Scans)
     ns, order = _clock(bag, "scan", scans.stamp, streams["scan"].recv, counts, clocks)
     origin = int(ns[order[0]])  # the first scan's stamp: times are seconds after it
 
@@ -400,7 +394,7 @@ def import_bag(
     counts["slots_empty"] = int((jumps - 1).sum())
     counts["rows_without_next"] = int((jumps > 1).sum()) + 1  # before a gap, and the last
 
-    odom = _concat(streams["odom"].values, Poses)
+    odom = _concat(streams["odom"].values, bagcodec.Poses)
     to, oo = _clock(bag, "odom", odom.stamp, streams["odom"].recv, counts, clocks)
     to, odom = seconds(to[oo]), odom.pose[oo]  # (O,), (O, 3)
     pose, covered = _interpolate(to, odom, t)  # (K, 3), (K,) bool
