@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+import subprocess
 import sys
 from pathlib import Path
 
@@ -188,11 +189,18 @@ def test_a_truncated_bag_is_one_line(sim_db, tmp_path, fmt):
         import_bag(bag)
 
 
-def test_a_missing_extra_is_one_line_that_says_how_to_install_it(bags, monkeypatch):
+def test_a_missing_extra_is_one_line_that_says_how_to_install_it(bags, monkeypatch, tmp_path):
     monkeypatch.setitem(sys.modules, "rosbags.highlevel", None)  # import fails as if absent
     with pytest.raises(InputError) as err:
         import_bag(bags["rosbag1"])
     assert str(err.value) == INSTALL_HINT
+    argv = ["sensorimotor", "import-bag", str(bags["rosbag1"]), "--out", str(tmp_path / "x.npz")]
+    code = (
+        "import sys; sys.modules['rosbags'] = None; "  # the extra absent
+        f"sys.argv = {argv!r}; from sensorimotor.cli import main; main()"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert_one_line_error(done, INSTALL_HINT)
 
 
 def test_the_default_layout_is_the_papers_and_scan_beams_fall_on_its_rays():
