@@ -133,9 +133,9 @@ def test_an_imported_database_saves_and_loads_with_or_without_its_world(sim_db, 
     assert back.world == square
     assert back.has_walls
     small = world_from_dict({"name": "small", "size": 20, "walls": []})
-    if (sim_db.poses[: N - 1, :2] > 20).any():
-        with pytest.raises(InputError, match="outside the 20 x 20 world 'small'"):
-            import_bag(bags["rosbag2/sqlite3"], world=small)
+    assert (sim_db.poses[: N - 1, :2] > 20).any()
+    with pytest.raises(InputError, match="outside the 20 x 20 world 'small'"):
+        import_bag(bags["rosbag2/sqlite3"], world=small)
 
 
 def test_a_walls_unknown_meta_that_names_a_built_in_world_is_refused(sim_db, bags, tmp_path):
