@@ -124,6 +124,8 @@ def test_an_imported_database_saves_and_loads_with_or_without_its_world(sim_db, 
     db = import_bag(bags["rosbag2/sqlite3"])
     back = load_database(save_database(db, tmp_path / "bag.npz"))
     assert back.meta == db.meta
+    again = save_database(import_bag(bags["rosbag2/sqlite3"]), tmp_path / "again.npz")
+    assert again.read_bytes() == (tmp_path / "bag.npz").read_bytes()  # same bag, same bytes
     assert not back.has_walls
     with pytest.raises(InputError, match="walls are unknown"):
         _ = back.world
