@@ -33,6 +33,7 @@ _API = {
     "generate": "sensorimotor.sim.database",
     "load_database": "sensorimotor.sim.database",
     "save_database": "sensorimotor.sim.database",
+    "import_bag": "sensorimotor.sim.rosbag",
     "corner_in_view": "sensorimotor.sim.events",
     "ModelConfig": "sensorimotor.learn.models",
     "build_model": "sensorimotor.learn.models",

@@ -77,6 +77,36 @@ def generate(
     err_console.print(f"wrote {out} ({steps:,} steps of {w.name}, seed {seed})")
 
 
+@app.command("import-bag")
+def import_bag(
+    bag: Annotated[Path, typer.Argument(help="ROS 1 .bag, ROS 2 bag folder or .mcap file.")],
+    out: Annotated[Path, typer.Option(help="Database (.npz) to write.")],
+    scan: Annotated[str, typer.Option(help="sensor_msgs/LaserScan topic.")] = "/scan",
+    odom: Annotated[str, typer.Option(help="nav_msgs/Odometry topic (the poses).")] = "/odom",
+    cmd: Annotated[
+        str | None, typer.Option(help="Twist topic of the commands (default: odometry's motion).")
+    ] = None,
+    rays: Annotated[int, typer.Option(help="Lasers (the encoders read 5).")] = 5,
+    fov: Annotated[float, typer.Option(help="Angle from first to last ray (rad).")] = 1.2,
+    range_: Annotated[float, typer.Option("--range", help="Reading of no return.")] = 10.0,
+    rate: Annotated[float | None, typer.Option(help="Rows/s (default: the scans').")] = None,
+    world: Annotated[str | None, typer.Option(help="World of the poses' frame.")] = None,
+    frame: Annotated[str | None, typer.Option(help="Poses in this /tf frame (map).")] = None,
+) -> None:
+    """Make a database of a real robot's recording: laser scans, odometry (see sim/rosbag.py)."""
+    from sensorimotor.files import check_writable
+    from sensorimotor.sim import rosbag
+    from sensorimotor.sim.database import save_database
+    from sensorimotor.sim.world import load_world
+
+    layout = rosbag.ray_layout(rays, fov, range_)
+    w = load_world(world) if world is not None else None
+    check_writable(out)
+    db = rosbag.import_bag(bag, rosbag.BagTopics(scan, odom, cmd, frame), layout, rate, w)
+    save_database(db, out)
+    err_console.print(f"wrote {out}: {rosbag.summary(db)}")
+
+
 plot_app = typer.Typer(
     help="Draw the paper's simulator figures as PNG: world (Fig. 1), trajectory (Fig. 2), "
     "perception (Fig. 3).",

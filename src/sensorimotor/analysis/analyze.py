@@ -60,7 +60,7 @@ def truth_readings(db: Database, split: str = SPLIT) -> np.ndarray:
     """Noiseless readings of a split: the stored ones, recomputed at the poses if noise was added
     (so "nothing in view" is the truth, not a noisy guess)."""
     part = db.take(split)
-    if not db.meta.get("noise_std"):
+    if not db.meta.get("noise_std") or not db.has_walls:
         return np.asarray(part.sensors, dtype=np.float64)
     return read_sensors(db.world, part.poses, db.layout)
 
@@ -74,9 +74,20 @@ def _analyze(run, db: Database, seed: int, fitted: RepresentationAnalysis | None
             f"{db.source}: {z.shape[1]}-d representation, the clusters were fitted on "
             f"{fitted.kmeans.n_features_in_}-d ones"
         )
+    world = db.world if db.has_walls else None  # None: the stages that need walls say n/a
     return analyze_representation(
-        z, truth_readings(db), part.poses, db.world, seed, kmeans, pca, db.layout
+        z, truth_readings(db), part.poses, world, seed, kmeans, pca, db.layout, name=_name(db)
     )
+
+
+def _name(db: Database) -> str:
+    """The world's name, or the recording's when its walls are unknown."""
+    return db.meta["world"]["name"]
+
+
+def _walls(db: Database):
+    """The World to draw the clusters in, or None when its walls are unknown."""
+    return db.world if db.has_walls else None
 
 
 def _check_same_layout(fit_db: Database, db: Database) -> None:
@@ -138,35 +149,36 @@ def analyze_files(
     out = _out_dir(out)  # made only once the analysis has succeeded
     part = db.take(SPLIT)
     files = []
-    pca_title = "PCA" + (f" fitted on {fit_db.world.name}" if fit_db is not None else "")
-    ax = plot_pca(result.pc, part.sensors.min(axis=1), title=f"{pca_title}: {db.world.name}")
+    pca_title = "PCA" + (f" fitted on {_name(fit_db)}" if fit_db is not None else "")
+    ax = plot_pca(result.pc, part.sensors.min(axis=1), title=f"{pca_title}: {_name(db)}")
     files += save_figure(ax.figure, out / "pca.png", svg=svg)
     name = RAW if run == RAW else run.kind
     if source is None:
         fig = plot_clusters(
-            db.world,
+            _walls(db),
             part.poses,
             result.labels,
             seed,
             titles=result.cluster_titles(),
-            suptitle=f"{name} on {db.world.name}: {len(part):,} test steps",
+            suptitle=f"{name} on {_name(db)}: {len(part):,} test steps",
         )
     else:
         fig = plot_transfer(
-            db.world,
+            _walls(db),
             part.poses,
             result.labels,
-            fit_db.world.name,
+            _name(fit_db),
             seed,
             titles=result.cluster_titles(),
+            name=_name(db),
         )
         fit_fig = plot_clusters(
-            fit_db.world,
+            _walls(fit_db),
             fit_db.take(SPLIT).poses,
             source.labels,
             seed,
             titles=source.cluster_titles(),
-            suptitle=f"{name} on {fit_db.world.name}: {len(fit_db.take(SPLIT)):,} test steps",
+            suptitle=f"{name} on {_name(fit_db)}: {len(fit_db.take(SPLIT)):,} test steps",
         )
         files += save_figure(fit_fig, out / "clusters_fit.png", svg=svg)
     files += save_figure(fig, out / "clusters.png", svg=svg)
@@ -205,6 +217,9 @@ def summary_lines(metrics: dict) -> list[str]:
         f"{m['world']}: {m['n_steps']:,} steps, {m['dim']}-d representation, "
         f"k = {m['k']}{' (transferred)' if m['transfer'] else ''}"
     ]
+    for name in m.get("not_applicable", []):
+        if name != "distance_behind":
+            lines.append(f"  {name.replace('_', ' ') + ' in view':<18} n/a (walls unknown)")
     for name, e in m["events"].items():
         best = "" if e["cluster"] is None else f"best cluster #{e['cluster']}: "
         lines.append(
@@ -216,6 +231,7 @@ def summary_lines(metrics: dict) -> list[str]:
     lines.append(
         f"  memory: {mem['nothing_clusters']} cluster(s) mostly nothing in view; distance-behind "
         f"R^2 (nothing in view) {'n/a' if r2 is None else f'{r2:.2f}'}"
+        + (" (walls unknown)" if "distance_behind" in m.get("not_applicable", []) else "")
     )
     p = m["position"]
     lines.append(

@@ -69,22 +69,41 @@ def plot_pca(
     return ax
 
 
+def pose_extent(poses: np.ndarray) -> tuple[float, float, float, float]:
+    """``(x0, x1, y0, y1)``: the region a path covers, with a margin (a square one for a path
+    along a line): where the clusters are drawn when the walls are unknown."""
+    xy = np.asarray(poses, dtype=np.float64)[:, :2]
+    lo, hi = xy.min(axis=0), xy.max(axis=0)
+    pad = 0.05 * max(float((hi - lo).max()), 1e-6)
+    return lo[0] - pad, hi[0] + pad, lo[1] - pad, hi[1] + pad
+
+
 def plot_cluster(
-    world: World,
+    world: World | None,
     poses: np.ndarray,
     ax: Axes | None = None,
     n_arrows: int = N_ARROWS,
     seed: int = 0,
     title: str | None = None,
     color: str = ARROW_COLOR,
+    extent: tuple[float, float, float, float] | None = None,
 ) -> Axes:
     """One cluster: up to ``n_arrows`` of ``poses`` (M, 3) at random (``seed``) as arrows at their
-    true position along their heading (one quiver, ``gid="arrows"``), over the walls."""
+    true position along their heading (one quiver, ``gid="arrows"``), over the walls; with no
+    ``world`` (walls unknown), in ``extent`` (``pose_extent``; default these poses') alone."""
     poses = np.asarray(poses, dtype=np.float64)
-    ax = plot_world(world, ax)
+    if world is not None:
+        ax = plot_world(world, ax)
+        length = ARROW_LENGTH * max(world.width, world.height)  # units
+    else:
+        x0, x1, y0, y1 = extent if extent is not None else pose_extent(poses)
+        ax = ax if ax is not None else Figure(layout="constrained").add_subplot()
+        ax.set_xlim(x0, x1)
+        ax.set_ylim(y0, y1)
+        ax.set_aspect("equal")
+        length = ARROW_LENGTH * max(x1 - x0, y1 - y0)
     if len(poses) > n_arrows:
         poses = poses[np.sort(np.random.default_rng(seed).choice(len(poses), n_arrows, False))]
-    length = ARROW_LENGTH * max(world.width, world.height)  # units
     ax.quiver(
         poses[:, 0],
         poses[:, 1],
@@ -109,7 +128,7 @@ def plot_cluster(
 
 
 def plot_clusters(
-    world: World,
+    world: World | None,
     poses: np.ndarray,
     labels: np.ndarray,
     seed: int = 0,
@@ -126,6 +145,7 @@ def plot_clusters(
     ``poses`` (N, 3) and ``labels`` (N,) are aligned; panel c draws ``n_arrows`` of cluster c's
     steps at random (``seed + c``). ``titles[c]`` titles panel c (default ``#c share%``), e.g.
     ``RepresentationAnalysis.cluster_titles()``. Panels fill ``ncols`` columns (4 x 5 for k = 20).
+    With no ``world`` (walls unknown), every panel shows the region all ``poses`` cover.
     """
     poses = np.asarray(poses, dtype=np.float64)
     labels = np.asarray(labels)
@@ -137,15 +157,21 @@ def plot_clusters(
         ids = list(range(len(titles) if titles is not None else int(labels.max()) + 1))
     ncols = min(ncols, len(ids))
     nrows = math.ceil(len(ids) / ncols)
+    extent = pose_extent(poses) if world is None else None
     if fig is None:
-        width, height = panel_size(world_aspect([world]), CLUSTER_PANEL, labels=0.0)  # no ticks
+        aspect = (
+            world_aspect([world])
+            if world is not None
+            else (extent[3] - extent[2]) / (extent[1] - extent[0])
+        )
+        width, height = panel_size(aspect, CLUSTER_PANEL, labels=0.0)  # no ticks
         size = (width * ncols, (height + 0.25) * nrows + (0.4 if suptitle else 0))
         fig = Figure(figsize=size, layout="constrained")
     axes = np.atleast_1d(fig.subplots(nrows, ncols, squeeze=False)).ravel()
     for ax, c in zip(axes, ids, strict=False):
         members = labels == c
         title = titles[c] if titles is not None else f"#{c}  {members.mean():.1%}"
-        plot_cluster(world, poses[members], ax, n_arrows, seed + c, title)
+        plot_cluster(world, poses[members], ax, n_arrows, seed + c, title, extent=extent)
     for ax in axes[len(ids) :]:
         ax.set_axis_off()
     if suptitle:
@@ -154,7 +180,7 @@ def plot_clusters(
 
 
 def plot_transfer(
-    world: World,
+    world: World | None,
     poses: np.ndarray,
     labels: np.ndarray,
     source: str,
@@ -163,11 +189,13 @@ def plot_transfer(
     titles: Sequence[str] | None = None,
     fig: Figure | None = None,
     clusters: Sequence[int] | None = None,
+    name: str | None = None,
 ) -> Figure:
     """Paper Figs. 9-10: clusters fitted on world ``source`` drawn on ``world``'s steps.
 
     ``labels`` are the steps of ``world`` assigned to the source's clusters; pick the clusters
-    to show with ``clusters`` (the paper shows a few). Otherwise as ``plot_clusters``.
+    to show with ``clusters`` (the paper shows a few). Otherwise as ``plot_clusters``; ``name``
+    names the steps' world (default ``world.name``; needed when the walls are unknown).
     """
     return plot_clusters(
         world,
@@ -178,5 +206,5 @@ def plot_transfer(
         titles,
         fig,
         clusters,
-        suptitle=f"clusters fitted on {source}, applied to {world.name}",
+        suptitle=f"clusters fitted on {source}, applied to {name or world.name}",
     )

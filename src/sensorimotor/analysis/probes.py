@@ -153,19 +153,21 @@ def memory_scores(
     z: np.ndarray,
     labels: np.ndarray,
     nothing: np.ndarray,
-    behind: np.ndarray,
+    behind: np.ndarray | None,
     seed: int = 0,
     k: int | None = None,
 ) -> dict:
-    """Memory while nothing is in view: R^2 of the distance behind, and "nothing" clusters."""
+    """Memory while nothing is in view: R^2 of the distance behind (None where it is unknown:
+    ``behind`` None, walls unknown), and "nothing" clusters."""
     nothing = np.asarray(nothing, dtype=bool)
     table = cluster_event_table(labels, nothing, k)
     mostly = np.flatnonzero((table["precision"] > MOSTLY) & (table["size"] > 0))
-    r2 = probe_r2(check_z(z)[nothing], np.asarray(behind)[nothing], seed) if nothing.any() else None
+    known = behind is not None and nothing.any()
+    r2 = probe_r2(check_z(z)[nothing], np.asarray(behind)[nothing], seed) if known else None
     return {
         "n_nothing": int(nothing.sum()),
         "distance_behind_r2": None if r2 is None or np.isnan(r2) else r2,
-        "distance_behind_mean": float(np.mean(behind[nothing])) if nothing.any() else None,
+        "distance_behind_mean": float(np.mean(behind[nothing])) if known else None,
         "nothing_clusters": len(mostly),
         "nothing_cluster_ids": mostly.tolist(),
     }

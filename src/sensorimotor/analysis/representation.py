@@ -32,14 +32,23 @@ def raw_representation(sensors: np.ndarray, max_range: float = 10.0) -> np.ndarr
     return scale_sensors(sensors, max_range)
 
 
+WALL_EVENTS = ("corner", "wall_end")  # the events whose truth needs the walls
+
+
 def world_events(
-    world: World, sensors: np.ndarray, poses: np.ndarray, layout: SensorLayout = DEFAULT_LAYOUT
+    world: World | None,
+    sensors: np.ndarray,
+    poses: np.ndarray,
+    layout: SensorLayout = DEFAULT_LAYOUT,
 ) -> dict:
     """The ground-truth events of each step, as ``layout``'s lasers see them: ``{name: (N,)
-    bool}``; wall ends only if any exist."""
-    out = {"corner": ev.corner_in_view(world, poses, layout)}
-    if len(ev.free_wall_ends(world)):
-        out["wall_end"] = ev.wall_end_in_view(world, poses, layout)
+    bool}``; wall ends only if any exist; with no ``world`` (walls unknown) "nothing" alone, the
+    one the readings tell."""
+    out = {}
+    if world is not None:
+        out["corner"] = ev.corner_in_view(world, poses, layout)
+        if len(ev.free_wall_ends(world)):
+            out["wall_end"] = ev.wall_end_in_view(world, poses, layout)
     out["nothing"] = ev.nothing_in_view(sensors, layout.max_range)
     return out
 
@@ -80,12 +89,13 @@ def analyze_representation(
     z: np.ndarray,
     sensors: np.ndarray,
     poses: np.ndarray,
-    world: World,
+    world: World | None,
     seed: int = 0,
     kmeans: KMeans | None = None,
     pca: PCA | None = None,
     layout: SensorLayout = DEFAULT_LAYOUT,
     k: int = N_CLUSTERS,
+    name: str | None = None,
 ) -> RepresentationAnalysis:
     """Cluster and score a representation ``z`` (N, D) of steps with raw ``sensors`` (N, R, in
     units) and true ``poses`` (N, 3) in ``world``, recorded with ``layout``'s lasers (what
@@ -100,7 +110,11 @@ def analyze_representation(
     - ``memory``: ``memory_scores``; ``position``: ``position_scores``;
     - ``clusters``: per cluster ``id``, ``size``, ``share``, ``precision`` and ``lift``
       (precision / rate) per event, and ``strongest_event``: the event of highest lift among those
-      with lift > 1 (None when none is over-represented).
+      with lift > 1 (None when none is over-represented);
+    - ``walls_known`` and ``not_applicable``: with no ``world`` (a recording whose walls are
+      unknown, named ``name``) the events that need walls, the distance behind and ``position``'s
+      normalisation by the world's size cannot be had: the events are listed there as n/a, the
+      distance behind is None, and positions are normalised by the region the poses cover.
     """
     z = check_z(z)
     poses = np.asarray(poses, dtype=np.float64)
@@ -122,7 +136,7 @@ def analyze_representation(
     pc = project_2d(pca, z)
 
     events = world_events(world, sensors, poses, layout)
-    behind = ev.distance_behind(world, poses)
+    behind = ev.distance_behind(world, poses) if world is not None else None
     tables = {name: cluster_event_table(labels, e, k) for name, e in events.items()}
     rates = {name: float(e.mean()) for name, e in events.items()}
     size = np.bincount(labels, minlength=k)
@@ -142,7 +156,9 @@ def analyze_representation(
             }
         )
     metrics = {
-        "world": world.name,
+        "world": world.name if world is not None else name,
+        "walls_known": world is not None,
+        "not_applicable": [] if world is not None else [*WALL_EVENTS, "distance_behind"],
         "n_steps": len(z),
         "dim": int(z.shape[1]),
         "seed": seed,
@@ -151,9 +167,17 @@ def analyze_representation(
         "pca_explained_variance": [float(v) for v in pca.explained_variance_ratio_],
         "events": {name: event_scores(labels, e, k) for name, e in events.items()},
         "memory": memory_scores(z, labels, events["nothing"], behind, seed, k),
-        "position": position_scores(z, poses, seed, (world.width, world.height)),
+        "position": position_scores(z, poses, seed, _region_size(world, poses)),
         "clusters": clusters,
     }
-    return RepresentationAnalysis(
-        metrics, labels, pc, kmeans, pca, {**events, "distance_behind": behind}
-    )
+    truth = {**events} if behind is None else {**events, "distance_behind": behind}
+    return RepresentationAnalysis(metrics, labels, pc, kmeans, pca, truth)
+
+
+def _region_size(world: World | None, poses: np.ndarray) -> tuple[float, float]:
+    """What positions are normalised by: the world's size, or the extent of the poses when the
+    walls are unknown (1 along a side the poses do not spread over)."""
+    if world is not None:
+        return (world.width, world.height)
+    span = np.ptp(np.asarray(poses, dtype=np.float64)[:, :2], axis=0)
+    return tuple(float(v) if v > 0 else 1.0 for v in span)

@@ -4,6 +4,11 @@ A database holds ``sensors`` (N, 5), ``motors`` (N, 2) and ``poses`` (N, 3), all
 ``meta``, a JSON string (world, seed, steps, sensor layout, package version). Row t holds s_t,
 the command m_t chosen after seeing s_t (it leads to s_{t+1}) and the pose where s_t was read.
 Splits are by position: the first 80 % train, the next 10 % validation, the last 10 % test.
+
+A database recorded where the walls are unknown (a real robot's, ``sim.rosbag``) has a
+``meta.world`` that holds a ``name`` alone, no ``size`` and no ``walls``: its poses are in the
+robot's odometry frame, and a stage that needs walls (events, maps, figures of the world) says
+so instead of guessing them (``Database.has_walls``).
 """
 
 from __future__ import annotations
@@ -22,7 +27,13 @@ import numpy as np
 from sensorimotor.errors import InputError
 from sensorimotor.files import atomic_path, check_input
 from sensorimotor.sim.core import DEFAULT_LAYOUT, SensorLayout, read_sensors, rollout
-from sensorimotor.sim.world import World, check_builtin_name, world_from_dict
+from sensorimotor.sim.world import (
+    BUILTIN_WORLDS,
+    NAME_PATTERN,
+    World,
+    check_builtin_name,
+    world_from_dict,
+)
 from sensorimotor.version import __version__
 
 SPLITS = {"train": (0.0, 0.8), "val": (0.8, 0.9), "test": (0.9, 1.0)}
@@ -54,7 +65,18 @@ class Database:
         return where if self.part is None else f"{where} ({self.part} split)"
 
     @property
+    def has_walls(self) -> bool:
+        """Whether the meta gives the world's walls (False for a recording made without them)."""
+        return not walls_unknown(self.meta)
+
+    @property
     def world(self) -> World:
+        """The world the database was recorded in; InputError when its walls are unknown."""
+        if not self.has_walls:
+            raise InputError(
+                f"{self.source}: the walls are unknown (a recording imported without --world); "
+                "this needs them"
+            )
         return world_from_dict(self.meta["world"], f"{self.source}: meta.world")
 
     @property
@@ -75,6 +97,12 @@ class Database:
         """The rows of one split, as a Database of its own (views, no copy)."""
         s = self.split(name)
         return Database(self.sensors[s], self.motors[s], self.poses[s], self.meta, self.path, name)
+
+
+def walls_unknown(meta: dict) -> bool:
+    """Whether a database's ``meta.world`` names its source alone, without size or walls."""
+    world = meta.get("world") if isinstance(meta, dict) else None
+    return isinstance(world, dict) and set(world) == {"name"}
 
 
 def as_database(db: Database | str | Path) -> Database:
@@ -232,10 +260,18 @@ def load_database(path: str | Path) -> Database:
         raise InputError(f"{path}: database is empty")
     try:
         meta = json.loads(str(meta_raw))
-        world = world_from_dict(meta["world"], f"{path}: meta.world")
-        if "name" not in meta["world"]:
-            raise InputError(f"{path}: meta.world has no 'name'")
-        check_builtin_name(world, f"{path}: meta.world")
+        if walls_unknown(meta):
+            world = None
+            name = meta["world"]["name"]
+            if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name):
+                raise InputError(f"{path}: meta.world.name {name!r} is not a valid name")
+            if name in BUILTIN_WORLDS:
+                raise InputError(f"{path}: meta.world names built-in {name!r} but not its walls")
+        else:
+            world = world_from_dict(meta["world"], f"{path}: meta.world")
+            if "name" not in meta["world"]:
+                raise InputError(f"{path}: meta.world has no 'name'")
+            check_builtin_name(world, f"{path}: meta.world")
         _check_layout(meta, arrays["sensors"].shape[1], path)
     except InputError:
         raise
@@ -246,13 +282,16 @@ def load_database(path: str | Path) -> Database:
     return db
 
 
-def _check_in_world(db: Database, world: World) -> None:
-    """Poses inside the world and readings within the lasers' range (float32 rounding aside)."""
+def _check_in_world(db: Database, world: World | None) -> None:
+    """Poses inside the world (when its walls are known) and readings within the lasers' range
+    (float32 rounding aside)."""
     path, max_range = db.path, db.max_range
     xy = db.poses[:, :2]
     tol = 1e-3
     outside = (
         (xy < -tol).any(axis=1) | (xy[:, 0] > world.width + tol) | (xy[:, 1] > world.height + tol)
+        if world is not None
+        else np.zeros(len(xy), dtype=bool)
     )
     if outside.any():
         row = int(np.argmax(outside))
@@ -269,17 +308,20 @@ def _check_in_world(db: Database, world: World) -> None:
             "(meta.sensor_layout.max_range)"
         )
     d, r, heading = db.motors[:, 0], db.motors[:, 1], db.poses[:, 2]
+    step_limit = MAX_STEP if world is None else max(world.width, world.height)
     for name, bad, allowed in (
-        ("motors (d)", np.abs(d) > max(world.width, world.height), "a step longer than the world"),
+        ("motors (d)", np.abs(d) > step_limit, "a step longer than the world"),
         ("motors (r)", np.abs(r) > 2 * math.pi + 1e-3, "a turn of more than a full turn"),
         ("poses (heading)", np.abs(heading) > math.pi + 1e-3, "a heading outside [-pi, pi]"),
     ):
         if bad.any():
             row = int(np.argmax(bad))
             raise InputError(f"{path}: {name} of row {row} is out of range ({allowed})")
-    _check_readings_match_world(db, world)
+    if world is not None:
+        _check_readings_match_world(db, world)
 
 
+MAX_STEP = 1_000.0  # units a step may move where the walls are unknown (a recording)
 READINGS_CHECKED = 2_000  # rows ray-cast again to check that the readings are the world's
 READINGS_TOLERANCE = 0.05  # units: float32 poses move a grazing ray's hit a little
 READINGS_DISAGREE = 0.05  # of the checked rows may disagree (a ray through a wall's very end)
@@ -288,8 +330,10 @@ READINGS_DISAGREE = 0.05  # of the checked rows may disagree (a ray through a wa
 def _check_readings_match_world(db: Database, world: World) -> None:
     """Refuse a database whose readings are not ray casts in the world its meta names
     (readings recorded in one world, meta naming another), on rows spread over the file.
-    Readings with noise or dropouts are not compared (nothing exact to compare with)."""
-    if db.meta.get("noise_std", 0) or db.meta.get("dropout", 0) or len(db) == 0:
+    Readings with noise or dropouts, and recordings of real robots (``meta.source``), are not
+    compared: nothing exact to compare with."""
+    meta = db.meta
+    if meta.get("noise_std", 0) or meta.get("dropout", 0) or "source" in meta or len(db) == 0:
         return
     rows = np.unique(np.linspace(0, len(db) - 1, min(len(db), READINGS_CHECKED)).astype(int))
     cast = read_sensors(world, db.poses[rows].astype(np.float64), db.layout)
