@@ -16,6 +16,7 @@ import pytest
 import torch
 
 from conftest import assert_one_line_error
+from sensorimotor.analysis.probes import position_scores, probe_r2
 from sensorimotor.errors import InputError
 from sensorimotor.files import atomic_path, folder_lock, strict_json, write_json_atomic
 from sensorimotor.learn.runs import TrainConfig
@@ -137,7 +138,7 @@ def test_training_that_diverges_stops_with_one_line_and_keeps_the_last_good_epoc
         assert all(torch.isfinite(t).all() for t in ckpt["model"].values())
 
 
-def test_a_fixed_pose_gives_no_position_score_instead_of_a_perfect_one(tmp_path, cli):
+def test_a_robot_that_never_moves_is_refused_by_the_analysis_in_one_line(tmp_path, cli):
     world = load_world("square")
     n = 4_000
     rng = np.random.default_rng(0)
@@ -146,14 +147,22 @@ def test_a_fixed_pose_gives_no_position_score_instead_of_a_perfect_one(tmp_path,
     motors = np.stack([rng.uniform(0, 1, n), rng.uniform(-0.5, 0.5, n)], 1).astype(np.float32)
     meta = {"world": world.to_dict(), "seed": 0}
     save_database(Database(sensors, motors, poses.astype(np.float32), meta), tmp_path / "still.npz")
-    proc = cli(
-        "analyze", "raw", "--data", tmp_path / "still.npz", "--out", tmp_path / "a", "--no-svg"
-    )
-    assert proc.returncode == 0, proc.stderr
-    text = (tmp_path / "a" / "metrics.json").read_text()
-    metrics = json.loads(text)  # strict: a NaN would not parse as JSON below
-    json.loads(text, parse_constant=lambda c: pytest.fail(f"{c} in metrics.json"))
-    assert metrics["analysis"]["position"]["r2_x"] is None
+    out = tmp_path / "a"
+    proc = cli("analyze", "raw", "--data", tmp_path / "still.npz", "--out", out, "--no-svg")
+    assert_one_line_error(proc, "still.npz", "1 distinct value(s), fewer than the 20 clusters")
+    assert not (out / "metrics.json").exists()
+
+
+def test_a_target_that_does_not_vary_has_no_r2_rather_than_a_perfect_one():
+    rng = np.random.default_rng(0)
+    z = rng.normal(size=(400, 10))
+    assert np.isnan(probe_r2(z, np.full(400, 25.0)))
+    assert probe_r2(z, z[:, 0] * 2 + 1) > 0.99  # a target that varies still scores
+    poses = np.stack([np.full(400, 25.0), rng.uniform(0, 50, 400), np.zeros(400)], 1)
+    scores = position_scores(z, poses)
+    assert scores["r2_x"] is None
+    assert scores["r2_cos_heading"] is None
+    assert isinstance(scores["r2_y"], float)
 
 
 def test_json_out_refuses_numbers_that_are_not_numbers(tmp_path):

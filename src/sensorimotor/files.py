@@ -142,13 +142,13 @@ def strict_json(obj, path: str | Path | None = None, indent: int | None = 2) -> 
         if isinstance(o, float) and not math.isfinite(o):
             return f"{where or 'the value'} is {o}"
         if isinstance(o, dict):
-            items = o.items()
+            keys = [(v, f"{where}.{k}" if where else str(k)) for k, v in o.items()]
         elif isinstance(o, list | tuple):
-            items = enumerate(o)
+            keys = [(v, f"{where}[{i}]") for i, v in enumerate(o)]
         else:
             return None
-        for k, v in items:
-            if (bad := find(v, f"{where}.{k}" if where else str(k))) is not None:
+        for v, key in keys:
+            if (bad := find(v, key)) is not None:
                 return bad
         return None
 

@@ -42,10 +42,19 @@ def representation_of(run, db: Database, split: str = SPLIT) -> np.ndarray:
             f"{db.source}: the {split} split has {n} steps; the analysis needs at least {N_CLUSTERS}"
         )
     if isinstance(run, str) and run == RAW:
-        return raw_representation(db.take(split).sensors, db.max_range)
-    from sensorimotor.learn.evaluate import representation  # torch only when a model is analysed
+        z = raw_representation(db.take(split).sensors, db.max_range)
+    else:
+        from sensorimotor.learn.evaluate import representation  # torch only for a model
 
-    return representation(run, db, split)
+        z = representation(run, db, split)
+    distinct = len(np.unique(z[:100_000], axis=0))
+    if distinct < N_CLUSTERS:  # k-means and PCA would only warn, and write NaN
+        raise InputError(
+            f"{db.source}: the representation of the {split} split takes {distinct} distinct "
+            f"value(s), fewer than the {N_CLUSTERS} clusters of the analysis (a robot that "
+            "never moves, or readings that never change?)"
+        )
+    return z
 
 
 # Every file an analysis may write; those it does not write this time are removed from its folder.
