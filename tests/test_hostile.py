@@ -274,3 +274,10 @@ def test_finding_a_start_in_a_world_of_many_walls_stays_small(tmp_path):
     assert len(load_world(path).walls) == 10_000
     grown_mb = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before) / 1024
     assert grown_mb < 1_000
+
+
+def test_a_world_name_too_long_to_name_files_is_refused_by_the_world_file(tmp_path, cli):
+    path = tmp_path / "long.toml"
+    path.write_text(f'name = "{"w" * 300}"\nsize = 50\nwalls = []\n')
+    proc = cli("generate", path, "--steps", "500")
+    assert_one_line_error(proc, str(path), "1 to 100 letters")

@@ -28,7 +28,7 @@ BUILTIN_WORLDS = ("square", "rooms1", "rooms2")
 START_CLEARANCE = 1.0  # a start position keeps at least this distance to every wall (units)
 MAX_SIZE = 10_000.0  # units a side: beyond it a world is a typo (the paper's are 50)
 MAX_WALLS = 10_000  # every ray is tested against every wall, every step
-NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]*")  # names run folders: no / or ..
+NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]{0,99}")  # names run folders: no / or .., short
 
 
 @dataclass(frozen=True, eq=False)
@@ -144,12 +144,12 @@ def world_from_dict(data: dict, source: str = "<dict>") -> World:
         rows.append((x0, y0, x1, y1))
 
     # without one, the file's name, made safe ("my world.toml" -> "my-world")
-    stem = re.sub(r"[^A-Za-z0-9_.+-]+", "-", Path(source).stem).strip("_.+-")
+    stem = re.sub(r"[^A-Za-z0-9_.+-]+", "-", Path(source).stem).strip("_.+-")[:100]
     name = data.get("name", stem or "world")
     if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name):
         raise fail(
-            f"'name' must be letters, digits and _ . + - (starting with a letter or digit), "
-            f"got {name!r}"
+            f"'name' must be 1 to 100 letters, digits and _ . + - (starting with a letter or "
+            f"digit), got {name if not isinstance(name, str) or len(name) <= 40 else name[:40] + '...'!r}"
         )
     rooms = _rooms(data.get("rooms", []), width, height, fail)
     world = World(name, width, height, np.array(rows, dtype=np.float64).reshape(-1, 4), rooms)
