@@ -1,0 +1,59 @@
+"""Commands of the analysis layer: what the representations contain."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from sensorimotor.cli.app import (
+    app,
+    err_console,
+)
+from sensorimotor.sim.core import MAX_SEED
+
+
+@app.command()
+def analyze(
+    run: Annotated[
+        str,
+        typer.Argument(
+            help="A run folder made by `sensorimotor train`, or `raw` for the 5 readings / 10."
+        ),
+    ],
+    data: Annotated[Path, typer.Option(help="Database whose test split is analysed (.npz).")],
+    out: Annotated[Path, typer.Option(help="Output folder for the figures and metrics.json.")],
+    fit_data: Annotated[
+        Path | None,
+        typer.Option(
+            help="Fit PCA and k-means on this database's test split and apply them to --data "
+            "(transfer)."
+        ),
+    ] = None,
+    seed: Annotated[
+        int, typer.Option(min=0, max=MAX_SEED, help="Seed of k-means, the probes and the drawings.")
+    ] = 0,
+    svg: Annotated[bool, typer.Option(help="Also save each figure as SVG.")] = True,
+) -> None:
+    """Cluster a representation (k-means, k = 20), score it against ground-truth events, draw it.
+
+    RUN is a run folder or `raw` (the readings themselves); the test split of --data is analysed;
+    with --fit-data, PCA and k-means are fitted on that database and applied to --data (transfer).
+    Writes pca.png, clusters.png (with --fit-data also clusters_fit.png: the clusters on the
+    fitting world), their SVGs, pca.npz and metrics.json into --out, and removes those files of
+    an earlier analysis there that this one does not write.
+    """
+    from sensorimotor.analysis import analyze_files, summary_lines
+
+    with err_console.status(f"analysing {run} on {data}"):
+        result = analyze_files(run, data, out, fit_data, seed, svg=svg)
+    m = result.metrics
+    if m["fit_analysis"] is not None:
+        print(f"{m['model']}, fitted on {m['fit_data']}:")
+        print("\n".join(summary_lines(m["fit_analysis"])))
+        print(f"{m['model']}, transferred to {m['data']}:")
+    else:
+        print(f"{m['model']} on {m['data']}:")
+    print("\n".join(summary_lines(m["analysis"])))
+    err_console.print("wrote " + ", ".join(str(p) for p in result.files), soft_wrap=True)

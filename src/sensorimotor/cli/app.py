@@ -1,0 +1,82 @@
+"""The command line's application, its shared options and helpers; the commands live in
+the modules beside this one, one per layer of the package."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+from sensorimotor.errors import InputError
+from sensorimotor.version import __version__
+
+app = typer.Typer(
+    name="sensorimotor",
+    help="Representation learning by sensorimotor prediction: simulate, train, analyse, report.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+err_console = Console(stderr=True, soft_wrap=True)
+
+WorldArg = Annotated[
+    str, typer.Argument(help="World: square, rooms1, rooms2, or the path of a .toml world file.")
+]
+
+
+def progress_bar() -> Progress:
+    """A rich progress bar on stderr."""
+    return Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        TextColumn("{task.completed:,}/{task.total:,}"),
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+        console=err_console,
+        transient=False,
+    )
+
+
+plot_app = typer.Typer(
+    help="Draw the paper's simulator figures as PNG: world (Fig. 1), trajectory (Fig. 2), "
+    "perception (Fig. 3).",
+    no_args_is_help=True,
+)
+app.add_typer(plot_app, name="plot")
+PlotOut = Annotated[Path, typer.Option(help="Output .png (written atomically).")]
+PlotSvg = Annotated[bool, typer.Option(help="Also write an .svg beside the .png.")]
+
+
+ModelArg = Annotated[str, typer.Argument(help="Model: s, sm, rec-s or rec-sm.")]
+
+
+def _check_model(model: str) -> str:
+    from sensorimotor.learn.models import MODEL_KINDS
+
+    if model not in MODEL_KINDS:
+        raise InputError(f"unknown model {model!r}: use one of {', '.join(MODEL_KINDS)}")
+    return model
+
+
+def version_callback(value: bool) -> None:
+    if value:
+        print(f"sensorimotor {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    version: Annotated[
+        bool,
+        typer.Option(
+            "--version", callback=version_callback, is_eager=True, help="Show the version."
+        ),
+    ] = False,
+) -> None:
+    """Representation learning by sensorimotor prediction (Kulak & Garcia Ortiz), reproduced."""
+
+
+INTERRUPTED = 130  # the shell's code for a process ended by SIGINT

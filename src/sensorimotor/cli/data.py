@@ -1,0 +1,175 @@
+"""Commands of the simulator layer: databases (generate, import-bag) and the paper's
+figures of the simulator (plot)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from sensorimotor.cli.app import (
+    PlotOut,
+    PlotSvg,
+    WorldArg,
+    app,
+    err_console,
+    plot_app,
+    progress_bar,
+)
+from sensorimotor.errors import InputError
+from sensorimotor.sim.core import MAX_SEED
+
+
+@app.command()
+def generate(
+    world: WorldArg,
+    steps: Annotated[int, typer.Option(help="Number of steps (rows) to record.")] = 1_000_000,
+    seed: Annotated[
+        int, typer.Option(min=0, max=MAX_SEED, help="Seed of the random generator (PCG64).")
+    ] = 0,
+    out: Annotated[
+        Path | None, typer.Option(help="Output .npz (default: WORLD_sSEED.npz).")
+    ] = None,
+    noise: Annotated[float, typer.Option(help="Std of Gaussian noise added to readings.")] = 0.0,
+) -> None:
+    """Record a database of the paper's random wall-avoiding behaviour in WORLD."""
+    from sensorimotor.files import check_writable
+    from sensorimotor.sim.database import check_memory, save_database
+    from sensorimotor.sim.database import generate as generate_db
+    from sensorimotor.sim.world import load_world
+
+    if steps < 1:
+        raise InputError(f"--steps must be at least 1, got {steps}")
+    if not (noise >= 0 and noise < float("inf")):
+        raise InputError(f"--noise must be a non-negative number, got {noise}")
+    w = load_world(world)
+    out = out or Path(f"{w.name}_s{seed}.npz")
+    check_writable(out)
+    check_memory(steps)
+    with progress_bar() as bar:
+        task = bar.add_task(f"generate {w.name}", total=steps)
+        db = generate_db(
+            w, steps, seed, noise_std=noise, progress=lambda n: bar.update(task, completed=n)
+        )
+    save_database(db, out)
+    err_console.print(f"wrote {out} ({steps:,} steps of {w.name}, seed {seed})")
+
+
+@app.command("import-bag")
+def import_bag(
+    bag: Annotated[Path, typer.Argument(help="ROS 1 .bag, ROS 2 bag folder or .mcap file.")],
+    out: Annotated[Path, typer.Option(help="Database (.npz) to write.")],
+    scan: Annotated[str, typer.Option(help="sensor_msgs/LaserScan topic.")] = "/scan",
+    odom: Annotated[str, typer.Option(help="nav_msgs/Odometry topic (the poses).")] = "/odom",
+    cmd: Annotated[
+        str | None, typer.Option(help="Twist topic of the commands (default: odometry's motion).")
+    ] = None,
+    rays: Annotated[int, typer.Option(help="Lasers (the encoders read 5).")] = 5,
+    fov: Annotated[float, typer.Option(help="Angle from first to last ray (rad).")] = 1.2,
+    range_: Annotated[float, typer.Option("--range", help="Reading of no return.")] = 10.0,
+    rate: Annotated[float | None, typer.Option(help="Rows/s (default: the scans').")] = None,
+    world: Annotated[str | None, typer.Option(help="World of the poses' frame.")] = None,
+    frame: Annotated[str | None, typer.Option(help="Poses in this /tf frame (map).")] = None,
+) -> None:
+    """Make a database of a real robot's recording: laser scans, odometry (see sim/rosbag.py)."""
+    from sensorimotor.files import check_writable
+    from sensorimotor.sim import rosbag
+    from sensorimotor.sim.database import save_database
+    from sensorimotor.sim.world import load_world
+
+    layout = rosbag.ray_layout(rays, fov, range_)
+    w = load_world(world) if world is not None else None
+    check_writable(out)
+    db = rosbag.import_bag(bag, rosbag.BagTopics(scan, odom, cmd, frame), layout, rate, w)
+    save_database(db, out)
+    err_console.print(f"wrote {out}: {rosbag.summary(db)}")
+
+
+def _save_plot(fig, out: Path, svg: bool) -> None:
+    from sensorimotor.sim.plots import save_figure
+
+    for path in save_figure(fig, out, svg=svg):
+        err_console.print(f"wrote {path}")
+
+
+def _check_png(out: Path) -> Path:
+    from sensorimotor.files import check_writable
+
+    if out.suffix.lower() != ".png":
+        raise InputError(f"{out}: --out must be a .png file")
+    return check_writable(out)
+
+
+@plot_app.command("world")
+def plot_world_cmd(
+    worlds: Annotated[
+        list[str],
+        typer.Argument(help="Worlds, side by side: square, rooms1, rooms2, or .toml paths."),
+    ],
+    out: PlotOut = Path("worlds.png"),
+    svg: PlotSvg = False,
+) -> None:
+    """Fig. 1: the walls of each WORLD, side by side."""
+    from sensorimotor.report.figures import worlds_figure
+    from sensorimotor.sim.world import load_world
+
+    _check_png(out)
+    _save_plot(worlds_figure([load_world(w) for w in worlds]), out, svg)
+
+
+@plot_app.command("trajectory")
+def plot_trajectory_cmd(
+    data: Annotated[
+        list[Path], typer.Option(help="Database (.npz); repeat for panels side by side.")
+    ],
+    steps: Annotated[int, typer.Option(help="Steps drawn from the start of each.")] = 10_000,
+    out: PlotOut = Path("trajectories.png"),
+    svg: PlotSvg = False,
+) -> None:
+    """Fig. 2: the agent's path over the first STEPS rows of each database, in its world."""
+    from sensorimotor.report.figures import trajectories_figure
+    from sensorimotor.sim.database import load_database
+
+    if steps < 1:
+        raise InputError(f"--steps must be at least 1, got {steps}")
+    _check_png(out)
+    _save_plot(trajectories_figure([load_database(p) for p in data], steps), out, svg)
+
+
+@plot_app.command("perception")
+def plot_perception_cmd(
+    data: Annotated[Path, typer.Option(help="Database (.npz) to take the situations from.")],
+    row: Annotated[
+        list[int] | None,
+        typer.Option(help="Draw these rows instead of the five situations; repeatable."),
+    ] = None,
+    view: Annotated[
+        float, typer.Option(help="Half-width of the window around the agent (units); 0: all.")
+    ] = 7.5,
+    out: PlotOut = Path("perception.png"),
+    svg: PlotSvg = False,
+) -> None:
+    """Fig. 3: what the agent perceives (5 red dots) in the paper's five situations.
+
+    The situations (nothing, line, corner, wall at its left, wall end) are found in the
+    database by pose and readings; a wall end needs a world with inner walls (rooms1).
+    """
+    from sensorimotor.report.figures import perception_figure, pick_situations
+    from sensorimotor.sim.database import load_database
+
+    if not (view >= 0 and math.isfinite(view)):
+        raise InputError(f"--view must be a non-negative number, got {view}")
+    _check_png(out)
+    db = load_database(data)
+    if row:
+        bad = [r for r in row if not 0 <= r < len(db)]
+        if bad:
+            raise InputError(f"{data}: row {bad[0]} is outside the database (0..{len(db) - 1})")
+        situations = {f"row {r}": r for r in row}
+    else:
+        situations = pick_situations(db)
+        if not situations:
+            raise InputError(f"{data}: none of the paper's five situations occurs in it")
+    _save_plot(perception_figure(db, situations, view=view or None), out, svg)

@@ -1,0 +1,70 @@
+"""Commands that run the whole pipeline: reproduce."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from sensorimotor.cli.app import (
+    app,
+    err_console,
+)
+
+
+@app.command()
+def reproduce(
+    scale: Annotated[
+        str,
+        typer.Option(
+            help="smoke: 20,000-step databases, 2 epochs a model, 1 seed (about a minute; it "
+            "tests the pipeline, not the paper). quick: 200,000 steps, epochs capped at 10 (S, "
+            "SM), 30 (Rec-S), 80 (Rec-SM), 1 seed (a few minutes). paper: the paper's protocol, "
+            "1,000,000 steps, early stopping, 5 seeds (35-50 min on 2 CPU cores, by CPU)."
+        ),
+    ] = "quick",
+    out: Annotated[Path, typer.Option(help="Output folder (cached stages are reused).")] = Path(
+        "runs/reproduce"
+    ),
+    seeds: Annotated[
+        int | None,
+        typer.Option(
+            help="How many seeds per model and world, 0..N-1 (a count, unlike train's list; "
+            "default: the scale's)."
+        ),
+    ] = None,
+    device: Annotated[str, typer.Option(help="auto, cpu or cuda.")] = "cpu",
+    workers: Annotated[
+        int | None, typer.Option(help="Parallel worker processes (default: the number of cores).")
+    ] = None,
+    worlds: Annotated[
+        str,
+        typer.Option(
+            help="Worlds to train and analyse in, comma-separated: any of square, rooms1, rooms2 "
+            "(the paper's Table I: square). Every model is tested on all three."
+        ),
+    ] = "square,rooms1,rooms2",
+) -> None:
+    """Reproduce the paper: databases, the four models on the three worlds, Table I, the analysis, a report."""
+    from sensorimotor.report.reproduce import reproduce as reproduce_all
+    from sensorimotor.report.workers import default_workers
+
+    rep = reproduce_all(
+        out,
+        scale,
+        seeds,
+        device,
+        workers if workers is not None else default_workers(),
+        log=err_console.print,
+        argv=sys.argv,
+        worlds=[w.strip() for w in worlds.split(",") if w.strip()],
+    )
+    done = f"done in {rep.timings['total']['seconds']:.0f} s: {rep.out / 'report.html'} and {rep.out / 'report.md'}"
+    holds = rep.table["paper_ordering_holds"].get("square")
+    if holds:
+        done += "; paper ordering on Square-trained models: " + ", ".join(
+            f"{w} {'holds' if v else 'fails'}" for w, v in holds.items() if v is not None
+        )
+    err_console.print(done)
