@@ -7,7 +7,8 @@ The package is a pipeline of four layers, each importing only those before it::
     analysis  representations, clusters, probes, claims, Table I
     report    the paper's figures, ``reproduce``, the report, worker processes
 
-with ``envs`` (the Gymnasium environment, on ``sim``) and ``cli`` at the edges. What a
+with ``envs`` (the Gymnasium environment, on ``sim``) and ``cli`` (the command line) at the
+edges. What a
 notebook needs is importable from here; each name loads its layer on first use, so
 ``import sensorimotor`` stays light:
 
