@@ -1,6 +1,6 @@
 """The CUDA path: the same training code with the data resident on the GPU (skipped without one).
 
-CI has no GPU; these run where one is lent (``python -m pytest tests/test_cuda.py``).
+CI has no GPU; these run where one is lent (``python -m pytest tests/learn/test_cuda.py``).
 """
 
 from __future__ import annotations
