@@ -454,6 +454,16 @@ def analyze(
     err_console.print("wrote " + ", ".join(str(p) for p in result.files), soft_wrap=True)
 
 
+BackendOpt = Annotated[
+    str,
+    typer.Option(help="local: worker processes here; ray: Ray tasks (pip install -e '.[ray]')."),
+]
+AddressOpt = Annotated[
+    str | None,
+    typer.Option(help="Ray cluster to join (ray start --head prints it; default: start one here)."),
+]
+
+
 @app.command()
 def reproduce(
     scale: Annotated[
@@ -477,7 +487,10 @@ def reproduce(
     ] = None,
     device: Annotated[str, typer.Option(help="auto, cpu or cuda.")] = "cpu",
     workers: Annotated[
-        int | None, typer.Option(help="Parallel worker processes (default: the number of cores).")
+        int | None,
+        typer.Option(
+            help="Jobs at a time (default: every core here, or every CPU of the Ray cluster)."
+        ),
     ] = None,
     worlds: Annotated[
         str,
@@ -486,20 +499,23 @@ def reproduce(
             "(the paper's Table I: square). Every model is tested on all three."
         ),
     ] = "square,rooms1,rooms2",
+    backend: BackendOpt = "local",
+    address: AddressOpt = None,
 ) -> None:
     """Reproduce the paper: databases, the four models on the three worlds, Table I, the analysis, a report."""
     from sensorimotor.report.reproduce import reproduce as reproduce_all
-    from sensorimotor.report.workers import default_workers
 
     rep = reproduce_all(
         out,
         scale,
         seeds,
         device,
-        workers if workers is not None else default_workers(),
+        workers,
         log=err_console.print,
         argv=sys.argv,
         worlds=[w.strip() for w in worlds.split(",") if w.strip()],
+        backend=backend,
+        address=address,
     )
     done = f"done in {rep.timings['total']['seconds']:.0f} s: {rep.out / 'report.html'} and {rep.out / 'report.md'}"
     holds = rep.table["paper_ordering_holds"].get("square")

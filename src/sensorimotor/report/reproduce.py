@@ -361,28 +361,58 @@ def _count(rep: Reproduction, stage: str, run: int, kept: int, overlapped: dict)
     rep.timings[stage] = {"jobs": run, "cached": kept - during, "during_training": during}
 
 
+BACKENDS = ("local", "ray")
+GPU_SHARE = 0.25  # of a GPU, held by each Ray task of a CUDA reproduction (tiny models)
+
+
 def reproduce(
     out: str | Path,
     scale: str = "quick",
     seeds: int | None = None,
     device: str = "cpu",
-    workers: int = 1,
+    workers: int | None = 1,
     log: Callable[[str], None] = print,
     argv: list[str] | None = None,
     worlds: Sequence[str] | None = None,
+    backend: str = "local",
+    address: str | None = None,
 ) -> Reproduction:
     """Run (or resume) every stage; returns what was found. See the module docstring.
 
     ``worlds``: the worlds models are trained and analysed in, any of ``WORLDS`` (default
-    all); every trained model is still tested on all three, as the paper's Table I."""
+    all); every trained model is still tested on all three, as the paper's Table I.
+    ``backend``: "local" (worker processes) or "ray" (Ray tasks on the cluster at ``address``,
+    or on one started here); the same jobs, the same seeds, the same results. ``workers``:
+    jobs at a time (None: every core here, or every CPU of the Ray cluster)."""
+    if backend not in BACKENDS:
+        raise InputError(f"--backend: use {' or '.join(BACKENDS)}, got {backend!r}")
+    if address is not None and backend != "ray":
+        raise InputError("--address joins a Ray cluster: add --backend ray")
+    if workers is not None and workers < 1:
+        raise InputError(f"--workers must be at least 1, got {workers}")
+    if backend == "local":
+        workers = default_workers() if workers is None else workers
+        return _reproduce(out, scale, seeds, device, workers, log, argv, worlds, run_jobs)
+    from functools import partial
+
+    from sensorimotor.learn.train import resolve_device
+    from sensorimotor.report import ray_backend
+
+    gpus = GPU_SHARE if resolve_device(device) == "cuda" else 0.0
+    with ray_backend.ray_session(address, workers) as cpus:
+        runner = partial(ray_backend.run_jobs, gpus=gpus)
+        workers = cpus if workers is None else workers
+        return _reproduce(out, scale, seeds, device, workers, log, argv, worlds, runner)
+
+
+def _reproduce(out, scale, seeds, device, workers, log, argv, worlds, run_jobs) -> Reproduction:
+    """``reproduce`` with its jobs run by ``run_jobs`` (``workers.run_jobs``'s signature)."""
     if scale not in SCALES:
         raise InputError(f"unknown scale {scale!r}: use one of {', '.join(SCALES)}")
     sc = SCALES[scale]
     seeds = sc.seeds if seeds is None else seeds
     if seeds < 1:
         raise InputError(f"--seeds must be at least 1, got {seeds}")
-    if workers < 1:
-        raise InputError(f"--workers must be at least 1, got {workers}")
     trained = check_worlds(worlds)
     from sensorimotor.learn.train import resolve_device
 
