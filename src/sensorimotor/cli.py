@@ -98,6 +98,9 @@ def _check_model(model: str) -> str:
     return model
 
 
+SET_HELP = "A setting KEY=VALUE (lr, batch_size, horizon, patience, min_ratio); repeatable."
+
+
 @app.command()
 def train(
     model: ModelArg,
@@ -124,9 +127,12 @@ def train(
             "run folders."
         ),
     ] = None,
+    settings: Annotated[list[str] | None, typer.Option("--set", help=SET_HELP)] = None,
 ) -> None:
     """Train one encoder by predicting the next reading (Adam, batch 64, early stopping)."""
-    from sensorimotor.learn.runs import TrainConfig
+    from dataclasses import replace
+
+    from sensorimotor.learn.runs import TrainConfig, parse_settings
 
     _check_model(model)
     seed_list = None if seeds is None else _parse_seeds(seeds)
@@ -139,6 +145,7 @@ def train(
     config = TrainConfig(
         model=model, seed=seed, max_epochs=max_epochs, max_minutes=max_minutes, device=device
     )
+    config = replace(config, **parse_settings(settings or []))
 
     if seed_list is None:
         seed_list, out_note = [seed], f"seed {seed}"
@@ -454,14 +461,8 @@ def analyze(
     err_console.print("wrote " + ", ".join(str(p) for p in result.files), soft_wrap=True)
 
 
-BackendOpt = Annotated[
-    str,
-    typer.Option(help="local: worker processes here; ray: Ray tasks (pip install -e '.[ray]')."),
-]
-AddressOpt = Annotated[
-    str | None,
-    typer.Option(help="Ray cluster to join (ray start --head prints it; default: start one here)."),
-]
+BackendOpt = Annotated[str, typer.Option(help="local: worker processes here; ray: Ray tasks.")]
+AddressOpt = Annotated[str | None, typer.Option(help="Ray cluster to join (default: start one).")]
 
 
 @app.command()
@@ -487,10 +488,7 @@ def reproduce(
     ] = None,
     device: Annotated[str, typer.Option(help="auto, cpu or cuda.")] = "cpu",
     workers: Annotated[
-        int | None,
-        typer.Option(
-            help="Jobs at a time (default: every core here, or every CPU of the Ray cluster)."
-        ),
+        int | None, typer.Option(help="Jobs at a time (default: every core, or every Ray CPU).")
     ] = None,
     worlds: Annotated[
         str,
@@ -524,6 +522,26 @@ def reproduce(
             f"{w} {'holds' if v else 'fails'}" for w, v in holds.items() if v is not None
         )
     err_console.print(done)
+
+
+@app.command()
+def sweep(
+    spec: Annotated[Path, typer.Argument(help="Sweep file: data, [train], [space], [asha].")],
+    out: Annotated[Path, typer.Option(help="Sweep folder: runs/trial_NNN, sweep.csv/.md/.png.")],
+    backend: BackendOpt = "local",
+    address: AddressOpt = None,
+    workers: Annotated[
+        int | None, typer.Option(help="Trials at a time (default: all CPUs).")
+    ] = None,
+    resume: Annotated[bool, typer.Option(help="Go on with the sweep in --out.")] = False,
+) -> None:
+    """Search training settings (grid, or random with a seed); on Ray, ASHA ends poor trials early."""
+    from sensorimotor.report.sweep import run_sweep
+
+    result = run_sweep(spec, out, backend, address, workers, resume, log=err_console.print)
+    err_console.print(f"wrote {', '.join(map(str, result.files))}")
+    if result.best_command is not None:  # the best trial, trained again
+        print(result.best_command)
 
 
 def version_callback(value: bool) -> None:

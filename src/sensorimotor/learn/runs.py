@@ -98,6 +98,29 @@ class TrainConfig:
             raise InputError(f"TrainConfig.min_ratio must be at most 1, got {self.min_ratio!r}")
 
 
+SETTABLE = ("lr", "batch_size", "horizon", "patience", "min_ratio")
+"""TrainConfig settings that ``train --set KEY=VALUE`` changes (the others have options)."""
+
+
+def parse_settings(pairs: list[str]) -> dict:
+    """``["lr=0.003", "batch_size=32"]`` -> ``{"lr": 0.003, "batch_size": 32}``, each value of
+    its field's type; InputError naming the pair on an unknown key or an unreadable value
+    (the range is TrainConfig's to check)."""
+    kinds = {"lr": float, "batch_size": int, "horizon": int, "patience": int, "min_ratio": float}
+    settings = {}
+    for pair in pairs:
+        key, sep, text = pair.partition("=")
+        key = key.strip()
+        if not sep or key not in SETTABLE:
+            raise InputError(f"--set {pair!r}: use KEY=VALUE with KEY one of {', '.join(SETTABLE)}")
+        try:
+            settings[key] = kinds[key](text.strip())
+        except ValueError:
+            kind = "an integer" if kinds[key] is int else "a number"
+            raise InputError(f"--set {pair!r}: {key} must be {kind}") from None
+    return settings
+
+
 @dataclass
 class EarlyStopping:
     """The paper's rule: improve = below ``min_ratio`` x the best counted error; stop after
