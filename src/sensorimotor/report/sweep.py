@@ -42,6 +42,7 @@ import math
 import sys
 import tomllib
 from collections.abc import Callable
+from contextlib import redirect_stdout
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
@@ -328,6 +329,10 @@ def run_sweep(
         raise InputError("--address joins a Ray cluster: add --backend ray")
     if workers is not None and workers < 1:
         raise InputError(f"--workers must be at least 1, got {workers}")
+    if backend == "ray":
+        from sensorimotor.report.ray_backend import import_ray
+
+        import_ray()  # a missing extra: said before anything is written
     sweep, out = read_sweep(spec), Path(out)
     _check_data(sweep)
     _open(sweep, out, resume)
@@ -369,7 +374,8 @@ def _run_ray(sweep: Sweep, out: Path, address, workers, resume: bool, log) -> li
             tuner = tune.Tuner.restore(str(experiment), trainable, resume_errored=True)
         else:
             max_epochs = {t.config["max_epochs"] for t in sweep.trials}
-            max_t = max(m or MAX_T for m in max_epochs)
+            # past the last epoch: a trial's own cap ends it (writing result.json), not ASHA's
+            max_t = max(m or MAX_T for m in max_epochs) + 1
             scheduler = ASHAScheduler(time_attr="epoch", max_t=max_t, **sweep.asha)
             trials = [
                 {
@@ -398,7 +404,8 @@ def _run_ray(sweep: Sweep, out: Path, address, workers, resume: bool, log) -> li
                     callbacks=[_progress_callback()],
                 ),
             )
-        grid = tuner.fit()
+        with redirect_stdout(sys.stderr):  # Tune's own lines: stdout is for the command
+            grid = tuner.fit()
     failures = []
     for result in grid:
         if result.error is not None:
@@ -435,10 +442,12 @@ def write_results(sweep: Sweep, out: Path, backend: str, failures: list[JobFailu
     failed = {f.name for f in failures}
     # a trial without result.json and without failure was ended by ASHA (or by a kill)
     ended = "ASHA" if backend == "ray" else "unfinished"
-    rows = [
-        sr.trial_row(t.name, t.values, out / "runs" / t.name, ended, t.name in failed)
-        for t in sweep.trials
-    ]
+    rows = []
+    for t in sweep.trials:
+        row = sr.trial_row(t.name, t.values, out / "runs" / t.name, ended, t.name in failed)
+        if row["stopped"] == ended and row["epochs"] == t.config["max_epochs"]:
+            row["stopped"] = "max epochs"  # ended by ASHA, or a kill, after its last epoch
+        rows.append(row)
     keys = list(sweep.space)
     ranked = sorted(
         (r for r in rows if r["best_val_error"] is not None), key=lambda r: r["best_val_error"]
