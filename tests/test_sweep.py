@@ -186,7 +186,6 @@ def test_a_local_sweep_killed_and_resumed_finishes_every_trial(folder, tmp_path)
     # the printed command trains the best trial again: the same validation errors
     command = done.stdout.strip().splitlines()[-1].split()
     assert command[:2] == ["sensorimotor", "train"]
-    assert command[command.index("--out") + 1]
     command[command.index("--out") + 1] = str(tmp_path / "best")
     again = subprocess.run(
         [sys.executable, "-m", "sensorimotor", *command[1:]], capture_output=True, text=True
