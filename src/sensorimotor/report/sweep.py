@@ -363,6 +363,7 @@ def _run_local(sweep: Sweep, out: Path, workers: int, log) -> list[JobFailure]:
 def _run_ray(sweep: Sweep, out: Path, address, workers, resume: bool, log) -> list[JobFailure]:
     from sensorimotor.report.ray_backend import ray_session
 
+    _LOG[0] = log
     with ray_session(address, workers) as cpus:
         from ray import tune
         from ray.tune.schedulers import ASHAScheduler
@@ -396,6 +397,7 @@ def _run_ray(sweep: Sweep, out: Path, address, workers, resume: bool, log) -> li
                     max_concurrent_trials=cpus if workers is None else workers,
                     trial_name_creator=_trial_name,
                     trial_dirname_creator=_trial_name,
+                    reuse_actors=True,  # a trial's process serves the next: no new imports
                 ),
                 run_config=tune.RunConfig(
                     name=experiment.name,
@@ -414,6 +416,15 @@ def _run_ray(sweep: Sweep, out: Path, address, workers, resume: bool, log) -> li
     return failures
 
 
+_LOG: list[Callable[[str], None]] = [print]  # where the running sweep's Tune lines go
+
+
+def _emit(line: str) -> None:
+    """A line of the Tune callback to the running sweep's log (the callback is pickled with
+    the experiment, so it holds no log of its own)."""
+    _LOG[0](line)
+
+
 def _trial_name(trial) -> str:
     return trial.config["trial"]["name"]
 
@@ -425,11 +436,10 @@ def _progress_callback():
     class Progress(Callback):
         def on_trial_result(self, iteration, trials, trial, result, **info) -> None:
             name = _trial_name(trial)
-            line = f"  {name}: epoch {result['epoch'] - 1:3d} best val {result['val_error']:.5f}"
-            print(line, file=sys.stderr, flush=True)
+            _emit(f"  {name}: epoch {result['epoch'] - 1:3d} best val {result['val_error']:.5f}")
 
         def on_trial_complete(self, iteration, trials, trial, **info) -> None:
-            print(f"  {_trial_name(trial)}: done", file=sys.stderr, flush=True)
+            _emit(f"  {_trial_name(trial)}: done")
 
     return Progress()
 
