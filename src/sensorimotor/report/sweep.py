@@ -480,7 +480,7 @@ def write_results(sweep: Sweep, out: Path, backend: str, failures: list[JobFailu
             ),
         ),
     ]
-    files += sr.save_sweep_figure(rows, keys, out / "sweep.png")
+    files += sr.save_sweep_figure(rows, sweep.space, out / "sweep.png")
     return SweepResult(out, ranked, best, files, failures)
 
 

@@ -88,31 +88,38 @@ def _label(value) -> str:
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
-def save_sweep_figure(rows: list[dict], keys: list[str], path: Path) -> list[Path]:
-    """``sweep.png``: one panel per searched setting, each trial's best validation error
-    against the setting's value; trials that did not finish (ASHA, a kill) are hollow."""
+def save_sweep_figure(rows: list[dict], space: dict, path: Path) -> list[Path]:
+    """``sweep.png``: one panel per searched setting (``space``: the sweep file's), each
+    trial's best validation error against the setting's value; a list's values are named on
+    the axis, a range's axis is log for ``log_uniform`` (and for a list of positive numbers
+    spanning 10 x); trials that did not finish (ASHA, a kill) are hollow."""
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter
 
     from sensorimotor.sim.plots import save_figure
 
+    keys = list(space)
     fig, axes = plt.subplots(1, len(keys), figsize=(3.6 * len(keys), 3.2), squeeze=False)
     done = [r for r in rows if r["best_val_error"] is not None]
     errors = [r["best_val_error"] for r in done]
     for ax, key in zip(axes[0], keys, strict=True):
         values = [r[key] for r in done]
+        listed = space[key] if isinstance(space[key], list) else None
         numeric = all(isinstance(v, int | float) and not isinstance(v, bool) for v in values)
         if numeric:
             x = [float(v) for v in values]
-            if x and min(x) > 0 and max(x) >= 10 * min(x):
+            spread = listed and min(listed) > 0 and max(listed) >= 10 * min(listed)
+            if spread or "log_uniform" in space[key]:
                 ax.set_xscale("log")
-            ticks = sorted(set(values))
-            if len(ticks) <= 8:  # a grid's values, named
-                ax.set_xticks([float(v) for v in ticks], [_label(v) for v in ticks])
+                ax.xaxis.set_minor_formatter(NullFormatter())  # 2e-4, 3e-4, ... would overlap
+            if listed:  # a list's values, named
+                ax.set_xticks([float(v) for v in listed], [_label(v) for v in listed])
                 ax.minorticks_off()
         else:
-            labels = list(dict.fromkeys(_label(v) for v in values))
+            labels = [_label(v) for v in listed or dict.fromkeys(values)]
             x = [labels.index(_label(v)) for v in values]
             ax.set_xticks(range(len(labels)), labels)
+            ax.set_xlim(-0.5, len(labels) - 0.5)
         for xi, r in zip(x, done, strict=True):
             finished = r["stopped"] in ("early stopping", "max epochs", "time cap")
             ax.scatter(
