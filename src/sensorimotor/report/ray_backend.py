@@ -83,9 +83,18 @@ class _ActorQueue:
 
     def __init__(self, box) -> None:
         self.box = box
+        self.last = None
 
     def put(self, item: tuple[str, str]) -> None:
-        self.box.put.remote(item)
+        self.last = self.box.put.remote(item)
+
+    def flush(self) -> None:
+        """Wait until the actor holds every line sent (it takes one caller's calls in order),
+        so that a job's lines are there before its result reaches the driver."""
+        if self.last is not None:
+            import ray
+
+            ray.get(self.last)
 
 
 class RemoteTraceback(Exception):
@@ -99,13 +108,15 @@ def _run_job(fn: Callable[..., Any], args: tuple, box, threads: int) -> tuple[bo
     """A job in a Ray task: (True, result, "") or (False, the exception it raised, traceback).
     The exception is returned, not raised, so that the driver gets it as the job raised it."""
     local.limit_threads(threads)
-    before, local._progress_queue = local._progress_queue, _ActorQueue(box)
+    queue = _ActorQueue(box)
+    before, local._progress_queue = local._progress_queue, queue
     try:
         return True, fn(*args), ""
     except Exception as err:
         return False, err, traceback.format_exc()
     finally:
         local._progress_queue = before
+        queue.flush()
 
 
 def run_jobs(
