@@ -39,6 +39,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import os
 import sys
 import tomllib
 from collections.abc import Callable
@@ -59,6 +60,7 @@ SEARCHABLE += ("max_epochs",)
 FIXED = tuple(f.name for f in fields(TrainConfig) if f.name not in ("device", "threads"))
 RANGES = ("log_uniform", "uniform", "int_uniform")
 ASHA = {"grace_period": 1, "reduction_factor": 2}
+NO_SIGINT_HANDLER = "TUNE_DISABLE_SIGINT_HANDLER"
 MAX_T = 100  # ASHA's horizon in epochs when the sweep sets no max_epochs
 
 
@@ -406,8 +408,20 @@ def _run_ray(sweep: Sweep, out: Path, address, workers, resume: bool, log) -> li
                     callbacks=[_progress_callback()],
                 ),
             )
-        with redirect_stdout(sys.stderr):  # Tune's own lines: stdout is for the command
-            grid = tuner.fit()
+        # Ctrl-C as everywhere else: KeyboardInterrupt, this run's trials ended with the Ray
+        # session (Tune's own handler would return as if done); Tune saves its state as it goes
+        quiet = os.environ.get(NO_SIGINT_HANDLER)
+        os.environ[NO_SIGINT_HANDLER] = "1"
+        try:
+            with redirect_stdout(sys.stderr):  # Tune's own lines: stdout is for the command
+                grid = tuner.fit()
+        finally:
+            if quiet is None:
+                os.environ.pop(NO_SIGINT_HANDLER)
+            else:
+                os.environ[NO_SIGINT_HANDLER] = quiet
+    if grid.num_terminated + grid.num_errors < len(grid):  # stopped by a signal (SIGUSR1)
+        raise KeyboardInterrupt  # as locally: no results until the sweep is done (--resume)
     failures = []
     for result in grid:
         if result.error is not None:
