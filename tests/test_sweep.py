@@ -192,3 +192,17 @@ def test_a_local_sweep_killed_and_resumed_finishes_every_trial(folder, tmp_path)
     )
     assert again.returncode == 0, again.stderr
     assert _val_errors(tmp_path / "best") == _val_errors(Path(best["run"]))
+
+
+def test_a_bad_backend_or_address_is_refused_before_ray_starts(folder, tmp_path):
+    from sensorimotor.report.ray_backend import _check_reachable
+    from sensorimotor.report.reproduce import reproduce
+
+    with pytest.raises(InputError, match="--backend: use local or ray, got 'dask'"):
+        reproduce(tmp_path / "r", backend="dask")
+    with pytest.raises(InputError, match="add --backend ray"):
+        run_sweep(folder / "grid.toml", tmp_path / "s", address="127.0.0.1:6379")
+    with pytest.raises(InputError, match=r"cannot reach a Ray cluster at 127\.0\.0\.1:1 "):
+        _check_reachable("127.0.0.1:1")  # nothing listens on port 1: refused at once
+    assert not (tmp_path / "r").exists()
+    assert not (tmp_path / "s").exists()

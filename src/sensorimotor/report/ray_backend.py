@@ -14,6 +14,7 @@ Ray is an optional extra (``pip install -e ".[ray]"``), imported only when asked
 
 from __future__ import annotations
 
+import socket
 import time
 import traceback
 from collections.abc import Callable, Iterator
@@ -45,6 +46,7 @@ def ray_session(address: str | None = None, num_cpus: int | None = None) -> Iter
     ray = import_ray()
     started = not ray.is_initialized()
     if started:
+        _check_reachable(address)
         try:
             ray.init(
                 address=address,
@@ -62,6 +64,21 @@ def ray_session(address: str | None = None, num_cpus: int | None = None) -> Iter
     finally:
         if started:
             ray.shutdown()
+
+
+def _check_reachable(address: str | None, seconds: float = 5.0) -> None:
+    """Refuse at once a ``HOST:PORT`` where nothing listens (``ray.init`` would retry for
+    minutes); other forms (``auto``, ``ray://...``) are Ray's to check."""
+    host, sep, port = (address or "").rpartition(":")
+    if not sep or not host or "/" in host or not port.isdigit():
+        return
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=seconds).close()
+    except OSError as err:
+        raise InputError(
+            f"--address: cannot reach a Ray cluster at {address} ({err.strerror or err}); "
+            "`ray start --head` prints the address to give"
+        ) from None
 
 
 class _ProgressBox:
