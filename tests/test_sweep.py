@@ -123,19 +123,23 @@ def test_train_set_reads_settings_by_their_type():
         parse_settings(["batch_size=3.5"])
 
 
-def test_asking_for_ray_without_it_is_one_line(cli, tmp_path, folder):
+def test_asking_for_ray_without_it_is_one_line(cli, tmp_path, folder, monkeypatch):
     fake = tmp_path / "noray" / "ray"  # an installed-looking ray whose import fails
     fake.mkdir(parents=True)
     (fake / "__init__.py").write_text("raise ImportError('No module named ray')\n")
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(fake.parent), *sys.path])}
-    for args in (
-        ["reproduce", "--backend", "ray", "--out", str(tmp_path / "r")],
-        ["sweep", str(folder / "grid.toml"), "--out", str(tmp_path / "s"), "--backend", "ray"],
-    ):
-        proc = subprocess.run(
-            [sys.executable, "-m", "sensorimotor", *args], capture_output=True, text=True, env=env
-        )
-        assert_one_line_error(proc, "Ray is not installed", '".[ray]"')
+    args = ["sweep", str(folder / "grid.toml"), "--out", str(tmp_path / "s"), "--backend", "ray"]
+    proc = subprocess.run(
+        [sys.executable, "-m", "sensorimotor", *args], capture_output=True, text=True, env=env
+    )
+    assert_one_line_error(proc, "Ray is not installed", '".[ray]"')
+    assert not (tmp_path / "s").exists()
+    from sensorimotor.report.reproduce import reproduce
+
+    monkeypatch.setitem(sys.modules, "ray", None)  # `import ray` fails in this process too
+    with pytest.raises(InputError, match="Ray is not installed"):
+        reproduce(tmp_path / "r", backend="ray")
+    assert not (tmp_path / "r").exists()
 
 
 def _rows(out: Path) -> list[dict]:
@@ -162,9 +166,8 @@ def test_a_local_sweep_killed_and_resumed_finishes_every_trial(folder, tmp_path)
     os.killpg(proc.pid, signal.SIGKILL)
     proc.wait()
     assert not (out / "sweep.csv").exists()
-    again = subprocess.run(cmd, capture_output=True, text=True)
-    assert_one_line_error(again, "already holds a sweep; pass --resume")
-    done = subprocess.run([*cmd, "--resume"], capture_output=True, text=True)
+    resume = [*cmd[:-1], "1", "--resume"]  # one worker: in the command's own process
+    done = subprocess.run(resume, capture_output=True, text=True)
     assert done.returncode == 0, done.stderr[-2000:]
     rows = _rows(out)
     assert [r["trial"] for r in rows] == [f"trial_{i:03d}" for i in range(8)]
