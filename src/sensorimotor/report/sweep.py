@@ -21,8 +21,10 @@ A sweep file (TOML) names the database, the settings held fixed and those search
     grace_period = 1         # epochs every trial trains before it can be stopped
     reduction_factor = 2     # each rung keeps 1 / reduction_factor of the trials
 
-Searchable: ``data`` (the training world, and with it the sensor layout) and the training
-settings ``model seed lr batch_size horizon patience min_ratio max_epochs``. Trials are drawn
+Searchable: ``data`` (the training world, and with it the sensor layout), the training
+settings ``model seed lr batch_size horizon patience min_ratio max_epochs`` and the model's
+sizes ``z_sensors z_motors rec_hidden lstm_size lstm_layers predictor_hidden`` (a model of
+other sizes than the paper's trains with autograd). Trials are drawn
 here, from the file alone, so that both backends run the same trials: ``OUT/runs/trial_NNN``
 trained by ``learn.train.train``. ``--backend local`` runs them through the local workers, each
 to its end; ``--backend ray`` through Ray Tune, whose ASHA scheduler stops the trials whose
@@ -51,13 +53,14 @@ import numpy as np
 
 from sensorimotor.errors import InputError
 from sensorimotor.files import write_text_atomic
-from sensorimotor.learn.runs import TrainConfig
+from sensorimotor.learn.runs import SIZES, TrainConfig, model_config
 from sensorimotor.report.workers import Job, JobFailure, default_workers, report
 
 SEARCHES = ("grid", "random")
 SEARCHABLE = ("data", "model", "seed", "lr", "batch_size", "horizon", "patience", "min_ratio")
-SEARCHABLE += ("max_epochs",)
+SEARCHABLE += ("max_epochs", *SIZES)
 FIXED = tuple(f.name for f in fields(TrainConfig) if f.name not in ("device", "threads"))
+FIXED += SIZES
 RANGES = ("log_uniform", "uniform", "int_uniform")
 ASHA = {"grace_period": 1, "reduction_factor": 2}
 NO_SIGINT_HANDLER = "TUNE_DISABLE_SIGINT_HANDLER"
@@ -73,6 +76,7 @@ class Trial:
     values: dict
     data: str
     config: dict
+    sizes: dict  # the model's sizes that are not the paper's
 
 
 @dataclass(frozen=True)
@@ -154,12 +158,15 @@ def read_sweep(path: str | Path) -> Sweep:
         name = f"trial_{i:03d}"
         data = values.get("data", fixed_data)
         data = str((path.parent / data).resolve())
+        settings = {**train, **{k: v for k, v in values.items() if k != "data"}}
+        sizes = {k: settings.pop(k) for k in SIZES if k in settings}
         try:
-            config = TrainConfig(**{**train, **{k: v for k, v in values.items() if k != "data"}})
+            config = TrainConfig(**settings)
+            model_config(config.model, sizes)
         except (InputError, TypeError) as err:
             raise InputError(f"{path}: {name} ({_show(values)}): {err}") from None
         config_dict = {k: v for k, v in asdict(config).items() if k not in ("device", "threads")}
-        trials.append(Trial(name, values, data, config_dict))
+        trials.append(Trial(name, values, data, config_dict, sizes))
     return Sweep(path, search, space, tuple(trials), asha)
 
 
@@ -235,7 +242,7 @@ def _show(values: dict) -> str:
 # --- running ----------------------------------------------------------------------------------
 
 
-def _trial_job(name: str, data: str, run_dir: str, config: dict) -> float:
+def _trial_job(name: str, data: str, run_dir: str, config: dict, sizes: dict) -> float:
     """One trial in a local worker: train (or go on training) its run folder; its best
     validation error."""
     from sensorimotor.learn.train import train
@@ -244,7 +251,9 @@ def _trial_job(name: str, data: str, run_dir: str, config: dict) -> float:
         report(name, f"epoch {r.epoch:3d} val {r.val_error:.5f} (best {stopper.lowest:.5f})")
 
     resume = (Path(run_dir) / "config.json").exists()
-    result = train(data, run_dir, TrainConfig(**config), resume=resume, on_epoch=on_epoch)
+    train_config = TrainConfig(**config)
+    model = model_config(train_config.model, sizes) if sizes else None
+    result = train(data, run_dir, train_config, resume, on_epoch, model)
     report(name, f"done: {result.ending}, best val {result.best_val_error:.5f}")
     return result.best_val_error
 
@@ -262,7 +271,9 @@ def _tune_trial(config: dict) -> None:
         tune.report({"val_error": stopper.lowest, "epoch": r.epoch + 1})
 
     resume = (Path(trial["run_dir"]) / "config.json").exists()
-    train(trial["data"], trial["run_dir"], TrainConfig(**trial["config"]), resume, on_epoch)
+    config = TrainConfig(**trial["config"])
+    model = model_config(config.model, trial["sizes"]) if trial["sizes"] else None
+    train(trial["data"], trial["run_dir"], config, resume, on_epoch, model)
 
 
 def _check_data(sweep: Sweep) -> None:
@@ -356,7 +367,7 @@ def _run_local(sweep: Sweep, out: Path, workers: int, log) -> list[JobFailure]:
     for t in sweep.trials:
         run_dir = out / "runs" / t.name
         if not (run_dir / "result.json").exists():
-            jobs.append(Job(t.name, _trial_job, (t.name, t.data, str(run_dir), t.config)))
+            jobs.append(Job(t.name, _trial_job, (t.name, t.data, str(run_dir), t.config, t.sizes)))
     log(f"  {len(jobs)} to train, {len(sweep.trials) - len(jobs)} done, {workers} workers")
     _, failures = run_jobs(jobs, workers, lambda name, msg: log(f"  {name}: {msg}"))
     return failures
@@ -386,6 +397,7 @@ def _run_ray(sweep: Sweep, out: Path, address, workers, resume: bool, log) -> li
                     "data": t.data,
                     "run_dir": str((out / "runs" / t.name).resolve()),
                     "config": t.config,
+                    "sizes": t.sizes,
                 }
                 for t in sweep.trials
             ]
@@ -479,7 +491,7 @@ def write_results(sweep: Sweep, out: Path, backend: str, failures: list[JobFailu
     best = None
     if ranked:
         trial = next(t for t in sweep.trials if t.name == ranked[0]["trial"])
-        best = sr.command_line(trial.data, trial.config)
+        best = sr.command_line(trial.data, trial.config, trial.sizes)
     files = [
         write_text_atomic(out / "sweep.csv", sr.results_csv(rows, keys)),
         write_text_atomic(

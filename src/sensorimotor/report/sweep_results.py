@@ -14,6 +14,7 @@ import math
 import shlex
 from pathlib import Path
 
+from sensorimotor.learn.models import ModelConfig
 from sensorimotor.learn.runs import SETTABLE, TrainConfig
 
 COLUMNS = ("best_val_error", "best_epoch", "epochs", "stopped")
@@ -146,9 +147,10 @@ def save_sweep_figure(rows: list[dict], space: dict, path: Path) -> list[Path]:
         plt.close(fig)
 
 
-def command_line(data: str, config: dict, out: str = "runs/best") -> str:
+def command_line(data: str, config: dict, sizes: dict, out: str = "runs/best") -> str:
     """The ``sensorimotor train`` command that trains a trial again (``config``: a
-    TrainConfig as a dict) into ``out``: the settings that differ from the paper's."""
+    TrainConfig as a dict; ``sizes``: the model's, where not the paper's) into ``out``: the
+    settings that differ from the paper's."""
     words = ["sensorimotor", "train", config["model"], "--data", data, "--out", out]
     words += ["--seed", str(config["seed"])]
     if config["max_epochs"] is not None:
@@ -159,4 +161,8 @@ def command_line(data: str, config: dict, out: str = "runs/best") -> str:
     for key in SETTABLE:
         if config[key] != getattr(default, key):
             words += ["--set", f"{key}={config[key]!r}"]
+    paper = ModelConfig(kind=config["model"])
+    for key, value in sizes.items():
+        if value != getattr(paper, key):
+            words += ["--set", f"{key}={value}"]
     return shlex.join(words)
