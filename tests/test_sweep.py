@@ -209,3 +209,26 @@ def test_a_bad_backend_or_address_is_refused_before_ray_starts(folder, tmp_path)
         _check_reachable("127.0.0.1:1")  # nothing listens on port 1: refused at once
     assert not (tmp_path / "r").exists()
     assert not (tmp_path / "s").exists()
+
+
+def test_model_sizes_are_searched_and_set_by_the_best_command(folder, tmp_path):
+    from sensorimotor.learn.evaluate import load_run
+    from sensorimotor.learn.runs import model_config
+
+    spec = _write(
+        folder,
+        'data = "sq.npz"\n[train]\nmodel = "s"\nmax_epochs = 1\npredictor_hidden = 32\n'
+        "[space]\nz_sensors = [3, 10]\n",
+        "sizes.toml",
+    )
+    assert [t.sizes for t in read_sweep(spec).trials] == [
+        {"predictor_hidden": 32, "z_sensors": z} for z in (3, 10)
+    ]
+    result = run_sweep(spec, tmp_path / "out", workers=1, log=lambda _: None)
+    model = load_run(tmp_path / "out" / "runs" / "trial_000").model
+    assert model.config.z_sensors == 3
+    assert model.config.predictor_hidden == 32
+    assert "--set predictor_hidden=32" in result.best_command
+    assert ("--set z_sensors=3" in result.best_command) == (result.rows[0]["z_sensors"] == 3)
+    with pytest.raises(InputError, match="lstm_size must be an integer >= 1"):
+        model_config("rec-sm", {"lstm_size": 0})
