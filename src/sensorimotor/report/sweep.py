@@ -266,14 +266,18 @@ def _tune_trial(config: dict) -> None:
     from sensorimotor.learn.train import train
 
     trial = config["trial"]
+    reported = []
 
     def on_epoch(r, stopper) -> None:
+        reported.append(r.epoch)
         tune.report({"val_error": stopper.lowest, "epoch": r.epoch + 1})
 
     resume = (Path(trial["run_dir"]) / "config.json").exists()
     config = TrainConfig(**trial["config"])
     model = model_config(config.model, trial["sizes"]) if trial["sizes"] else None
-    train(trial["data"], trial["run_dir"], config, resume, on_epoch, model)
+    result = train(trial["data"], trial["run_dir"], config, resume, on_epoch, model)
+    if not reported:  # its epochs were all trained before a kill: Tune still needs its metric
+        tune.report({"val_error": result.best_val_error, "epoch": result.epochs})
 
 
 def _check_data(sweep: Sweep) -> None:
