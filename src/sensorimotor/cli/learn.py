@@ -17,6 +17,11 @@ from sensorimotor.cli.app import (
 from sensorimotor.errors import InputError
 from sensorimotor.sim.core import MAX_SEED
 
+SET_HELP = (
+    "A setting KEY=VALUE, repeatable: lr, batch_size, horizon, patience, min_ratio, or a model "
+    "size: z_sensors, z_motors, rec_hidden, lstm_size, lstm_layers, predictor_hidden."
+)
+
 
 @app.command()
 def train(
@@ -44,9 +49,10 @@ def train(
             "run folders."
         ),
     ] = None,
+    settings: Annotated[list[str] | None, typer.Option("--set", help=SET_HELP)] = None,
 ) -> None:
     """Train one encoder by predicting the next reading (Adam, batch 64, early stopping)."""
-    from sensorimotor.learn.runs import TrainConfig
+    from sensorimotor.learn.runs import TrainConfig, apply_settings
 
     _check_model(model)
     seed_list = None if seeds is None else _parse_seeds(seeds)
@@ -59,12 +65,13 @@ def train(
     config = TrainConfig(
         model=model, seed=seed, max_epochs=max_epochs, max_minutes=max_minutes, device=device
     )
+    config, sizes = apply_settings(config, settings or [])
 
     if seed_list is None:
         seed_list, out_note = [seed], f"seed {seed}"
     else:
         out_note = f"seeds {','.join(map(str, seed_list))}"
-    _train(model, data, out, config, seed_list, out_note, resume, single=seeds is None)
+    _train(model, data, out, config, seed_list, out_note, resume, seeds is None, sizes)
 
 
 def _parse_seeds(text: str) -> list[int]:
@@ -114,7 +121,7 @@ def epoch_line(r, stopper, seed: int | None = None, max_minutes: float | None = 
     )
 
 
-def _train(model, data: Path, out: Path, config, seeds: list[int], note: str, resume, single):
+def _train(model, data: Path, out: Path, config, seeds: list[int], note, resume, single, sizes):
     """`train`: one run folder (OUT itself with --seed; one per seed under OUT with --seeds),
     a line per seed and epoch, a line per finished run."""
     from sensorimotor.learn.models import MODEL_NAMES
@@ -130,10 +137,10 @@ def _train(model, data: Path, out: Path, config, seeds: list[int], note: str, re
         err_console.print(epoch_line(r, stopper, None if single else seed, config.max_minutes))
 
     if single:
-        one = train(data, out, config, resume, lambda r, st: on_epoch(seeds[0], r, st))
+        one = train(data, out, config, resume, lambda r, st: on_epoch(seeds[0], r, st), sizes)
         results = [one]
     else:
-        results = train_seeds(data, out, config, seeds, resume=resume, on_epoch=on_epoch)
+        results = train_seeds(data, out, config, seeds, resume, on_epoch, sizes)
     for seed, result in zip(seeds, results, strict=True):
         where = "" if single else f" -> {result.run_dir}"
         err_console.print(

@@ -1,4 +1,4 @@
-"""Commands that run the whole pipeline: reproduce."""
+"""Commands that run many jobs: reproduce the paper, sweep training settings."""
 
 from __future__ import annotations
 
@@ -12,6 +12,9 @@ from sensorimotor.cli.app import (
     app,
     err_console,
 )
+
+BackendOpt = Annotated[str, typer.Option(help="local: worker processes here; ray: Ray tasks.")]
+AddressOpt = Annotated[str | None, typer.Option(help="Ray cluster to join (default: start one).")]
 
 
 @app.command()
@@ -37,7 +40,7 @@ def reproduce(
     ] = None,
     device: Annotated[str, typer.Option(help="auto, cpu or cuda.")] = "cpu",
     workers: Annotated[
-        int | None, typer.Option(help="Parallel worker processes (default: the number of cores).")
+        int | None, typer.Option(help="Jobs at a time (default: every core, or every Ray CPU).")
     ] = None,
     worlds: Annotated[
         str,
@@ -46,20 +49,23 @@ def reproduce(
             "(the paper's Table I: square). Every model is tested on all three."
         ),
     ] = "square,rooms1,rooms2",
+    backend: BackendOpt = "local",
+    address: AddressOpt = None,
 ) -> None:
     """Reproduce the paper: databases, the four models on the three worlds, Table I, the analysis, a report."""
     from sensorimotor.report.reproduce import reproduce as reproduce_all
-    from sensorimotor.report.workers import default_workers
 
     rep = reproduce_all(
         out,
         scale,
         seeds,
         device,
-        workers if workers is not None else default_workers(),
+        workers,
         log=err_console.print,
         argv=sys.argv,
         worlds=[w.strip() for w in worlds.split(",") if w.strip()],
+        backend=backend,
+        address=address,
     )
     done = f"done in {rep.timings['total']['seconds']:.0f} s: {rep.out / 'report.html'} and {rep.out / 'report.md'}"
     holds = rep.table["paper_ordering_holds"].get("square")
@@ -68,3 +74,23 @@ def reproduce(
             f"{w} {'holds' if v else 'fails'}" for w, v in holds.items() if v is not None
         )
     err_console.print(done)
+
+
+@app.command()
+def sweep(
+    spec: Annotated[Path, typer.Argument(help="Sweep file: data, [train], [space], [asha].")],
+    out: Annotated[Path, typer.Option(help="Sweep folder: runs/trial_NNN, sweep.csv/.md/.png.")],
+    backend: BackendOpt = "local",
+    address: AddressOpt = None,
+    workers: Annotated[
+        int | None, typer.Option(help="Trials at a time (default: all CPUs).")
+    ] = None,
+    resume: Annotated[bool, typer.Option(help="Go on with the sweep in --out.")] = False,
+) -> None:
+    """Search training settings (grid, or random with a seed); on Ray, ASHA ends poor trials early."""
+    from sensorimotor.report.sweep import run_sweep
+
+    result = run_sweep(spec, out, backend, address, workers, resume, log=err_console.print)
+    err_console.print(f"wrote {', '.join(map(str, result.files))}")
+    if result.best_command is not None:  # the best trial, trained again
+        print(result.best_command)

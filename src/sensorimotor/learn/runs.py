@@ -18,7 +18,7 @@ import zipfile
 import zlib
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -106,6 +106,52 @@ class TrainConfig:
             object.__setattr__(self, name, float(value))
         if self.min_ratio > 1:
             raise InputError(f"TrainConfig.min_ratio must be at most 1, got {self.min_ratio!r}")
+
+
+SETTABLE = ("lr", "batch_size", "horizon", "patience", "min_ratio")
+"""TrainConfig settings that ``train --set KEY=VALUE`` changes (the others have options)."""
+SIZES = ("z_sensors", "z_motors", "rec_hidden", "lstm_size", "lstm_layers", "predictor_hidden")
+"""ModelConfig sizes that ``train --set KEY=VALUE`` changes (default: the paper's)."""
+
+
+def parse_settings(pairs: list[str]) -> dict:
+    """``["lr=0.003", "lstm_size=64"]`` -> ``{"lr": 0.003, "lstm_size": 64}``, each value of
+    its field's type (``SETTABLE`` and ``SIZES``); InputError naming the pair on an unknown key
+    or an unreadable value (the range is TrainConfig's and ``model_config``'s to check)."""
+    kinds = {"lr": float, "batch_size": int, "horizon": int, "patience": int, "min_ratio": float}
+    kinds |= dict.fromkeys(SIZES, int)
+    settings = {}
+    for pair in pairs:
+        key, sep, text = pair.partition("=")
+        key = key.strip()
+        if not sep or key not in kinds:
+            raise InputError(f"--set {pair!r}: use KEY=VALUE with KEY one of {', '.join(kinds)}")
+        try:
+            settings[key] = kinds[key](text.strip())
+        except ValueError:
+            kind = "an integer" if kinds[key] is int else "a number"
+            raise InputError(f"--set {pair!r}: {key} must be {kind}") from None
+    return settings
+
+
+def apply_settings(config: TrainConfig, pairs: list[str]) -> tuple[TrainConfig, ModelConfig | None]:
+    """``train --set KEY=VALUE ...``: ``config`` with its settings changed, and the model's
+    sizes (None: none given, the paper's)."""
+    settings = parse_settings(pairs)
+    sizes = {key: settings.pop(key) for key in SIZES if key in settings}
+    model = model_config(config.model, sizes) if sizes else None
+    return replace(config, **settings), model
+
+
+def model_config(kind: str, sizes: dict) -> ModelConfig:
+    """The paper's ``kind`` encoder with ``sizes`` (some of ``SIZES``) changed; InputError on
+    another key or a size that is not a positive integer."""
+    for key, value in sizes.items():
+        if key not in SIZES:
+            raise InputError(f"ModelConfig.{key}: not a size, use one of {', '.join(SIZES)}")
+        if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
+            raise InputError(f"ModelConfig.{key} must be an integer >= 1, got {value!r}")
+    return ModelConfig(kind=kind, **{k: int(v) for k, v in sizes.items()})
 
 
 @dataclass
@@ -259,10 +305,17 @@ def _history_csv(history: list[EpochRecord]) -> str:
     return buf.getvalue()
 
 
-def run_meta(data: Path, db: Database, config: TrainConfig, sha256: str | None = None) -> dict:
-    """What a run folder's ``config.json`` records: model, training config, data, version."""
+def run_meta(
+    data: Path,
+    db: Database,
+    config: TrainConfig,
+    sha256: str | None = None,
+    model: ModelConfig | None = None,
+) -> dict:
+    """What a run folder's ``config.json`` records: model (default: the paper's sizes),
+    training config, data, version."""
     return {
-        "model": ModelConfig(kind=config.model).to_dict(),
+        "model": (model or ModelConfig(kind=config.model)).to_dict(),
         "train": {k: v for k, v in asdict(config).items() if k != "device"},
         "data": {
             "path": str(data),

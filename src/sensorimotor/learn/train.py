@@ -132,6 +132,7 @@ def train_runs(
     config: TrainConfig,
     resume: bool = False,
     on_epoch: OnEpoch | None = None,
+    model: ModelConfig | None = None,
 ) -> list[TrainResult]:
     """Train one model per ``(seed, run folder)`` in ``runs``; resumable after every epoch.
 
@@ -140,7 +141,9 @@ def train_runs(
     ``config.seed`` is not used: each run has its own. A run folder is the same whichever
     seeds share the call. With ``resume``, each run continues from its checkpoint; seeds left
     at different epochs (a kill between two seeds' checkpoints) train in separate engines,
-    the lagging one first, and merge once caught up.
+    the lagging one first, and merge once caught up. ``model``: the encoder's sizes (default:
+    the paper's ``config.model``); other sizes train with autograd (the stacked passes are
+    checked on the paper's).
     """
     if isinstance(data, (str, Path, Database)):
         data = [data] * len(runs)
@@ -151,8 +154,12 @@ def train_runs(
     split_of = [files.index(p) for p in paths]
     device = resolve_device(config.device)
     config = replace(config, device=device)
-    stacked = trains_stacked(config.model, device)
-    if stacked and ModelConfig(kind=config.model).recurrent and len(files) > 1:
+    paper = ModelConfig(kind=config.model)
+    model_config = paper if model is None else model
+    if model_config.kind != config.model:
+        raise ValueError(f"a {model_config.kind} model for TrainConfig.model {config.model}")
+    stacked = model_config == paper and trains_stacked(config.model, device)
+    if stacked and model_config.recurrent and len(files) > 1:
         raise ValueError("a recurrent stack trains on one database")
     seeds = [int(seed) for seed, _ in runs]
     for f in files or [None]:  # at least one seed, and distinct ones on each database
@@ -169,20 +176,22 @@ def train_runs(
         sha: dict[int, str] = {}
         metas = []
         for seed, out, w in zip(seeds, outs, split_of, strict=True):
-            meta = run_meta(files[w], dbs[w], replace(config, seed=seed), sha.get(w))
+            meta = run_meta(files[w], dbs[w], replace(config, seed=seed), sha.get(w), model_config)
             sha[w] = meta["data"]["sha256"]
             locks.enter_context(lock_run_dir(out))  # one process writes a run folder
             check_run_dir(out, meta, resume)  # every folder checked before any is written
             metas.append(meta)
-        state = state_of(outs, seeds, split_of, config, resume)  # checkpoints checked first
+        state = state_of(outs, seeds, split_of, config, model_config, resume)  # checked first
         for out, meta in zip(outs, metas, strict=True):
             open_run_dir(out, meta)
-        return _epochs(dbs, state, config, on_epoch)
+        engine_type = StackedEngine if stacked else AutogradEngine
+        return _epochs(dbs, state, config, engine_type, on_epoch)
 
 
-def state_of(outs, seeds, split_of, config: TrainConfig, resume: bool) -> list[_Run]:
+def state_of(
+    outs, seeds, split_of, config: TrainConfig, model_config: ModelConfig, resume: bool
+) -> list[_Run]:
     """Each run's model, optimiser and early stopping, from its checkpoint where resumed."""
-    model_config = ModelConfig(kind=config.model)
     state: list[_Run] = []
     for i, (seed, out, w) in enumerate(zip(seeds, outs, split_of, strict=True)):
         model = build_model(model_config, seed=seed).to(config.device)
@@ -197,12 +206,14 @@ def state_of(outs, seeds, split_of, config: TrainConfig, resume: bool) -> list[_
     return state
 
 
-def _epochs(dbs, state: list[_Run], config: TrainConfig, on_epoch) -> list[TrainResult]:
-    """The epochs of every run in ``state``, their folders open and locked."""
+def _epochs(
+    dbs, state: list[_Run], config: TrainConfig, engine_type, on_epoch
+) -> list[TrainResult]:
+    """The epochs of every run in ``state``, their folders open and locked, on engines of
+    ``engine_type``."""
     device = config.device
     torch.set_num_threads(config.threads)
     keep_freed_memory()
-    engine_type = StackedEngine if trains_stacked(config.model, device) else AutogradEngine
     train_splits = [split_tensors(db, "train", device) for db in dbs]
     if len(dbs) == 1:
         s, m = train_splits[0]
@@ -300,11 +311,12 @@ def train(
     config: TrainConfig,
     resume: bool = False,
     on_epoch: Callable[[EpochRecord, EarlyStopping], None] | None = None,
+    model: ModelConfig | None = None,
 ) -> TrainResult:
     """Train one model, seed ``config.seed``, on ``data`` (a database file, or a Database
     loaded from one) into run folder ``out``: ``train_runs`` with one run."""
     callback = None if on_epoch is None else (lambda _i, r, st: on_epoch(r, st))
-    return train_runs(data, [(config.seed, out)], config, resume, callback)[0]
+    return train_runs(data, [(config.seed, out)], config, resume, callback, model)[0]
 
 
 def train_seeds(
@@ -314,6 +326,7 @@ def train_seeds(
     seeds: Sequence[int],
     resume: bool = False,
     on_epoch: OnEpoch | None = None,
+    model: ModelConfig | None = None,
 ) -> list[TrainResult]:
     """Train one model per seed into ``out/{world}__{model}__s{seed}`` run folders, all in
     one ``train_runs`` call; ``on_epoch`` is told each record's seed."""
@@ -324,4 +337,4 @@ def train_seeds(
     world = load_database(data).meta["world"]["name"]
     runs = [(seed, out / run_name(world, config.model, seed)) for seed in seeds]
     by_index = None if on_epoch is None else (lambda i, r, st: on_epoch(seeds[i], r, st))
-    return train_runs(data, runs, config, resume, by_index)
+    return train_runs(data, runs, config, resume, by_index, model)

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import platform
 import shutil
 import sys
 import time
@@ -27,7 +26,7 @@ from sensorimotor.errors import InputError
 from sensorimotor.files import file_hash, write_json_atomic
 from sensorimotor.learn.models import MODEL_KINDS
 from sensorimotor.learn.runs import count
-from sensorimotor.report.workers import Job, default_workers, report, run_jobs
+from sensorimotor.report.workers import Job, default_workers, hardware, report, run_jobs
 from sensorimotor.version import __version__
 
 WORLDS = ("square", "rooms1", "rooms2")
@@ -396,28 +395,58 @@ def _training_jobs(rep: Reproduction, data_hash: dict[str, str]):
     return jobs, trains, sum(len(runs) for runs in groups.values())
 
 
+BACKENDS = ("local", "ray")
+GPU_SHARE = 0.25  # of a GPU, held by each Ray task of a CUDA reproduction (tiny models)
+
+
 def reproduce(
     out: str | Path,
     scale: str = "quick",
     seeds: int | None = None,
     device: str = "cpu",
-    workers: int = 1,
+    workers: int | None = 1,
     log: Callable[[str], None] = print,
     argv: list[str] | None = None,
     worlds: Sequence[str] | None = None,
+    backend: str = "local",
+    address: str | None = None,
 ) -> Reproduction:
     """Run (or resume) every stage; returns what was found. See the module docstring.
 
     ``worlds``: the worlds models are trained and analysed in, any of ``WORLDS`` (default
-    all); every trained model is still tested on all three, as the paper's Table I."""
+    all); every trained model is still tested on all three, as the paper's Table I.
+    ``backend``: "local" (worker processes) or "ray" (Ray tasks on the cluster at ``address``,
+    or on one started here); the same jobs, the same seeds, the same results. ``workers``:
+    jobs at a time (None: every core here, or every CPU of the Ray cluster)."""
+    if backend not in BACKENDS:
+        raise InputError(f"--backend: use {' or '.join(BACKENDS)}, got {backend!r}")
+    if address is not None and backend != "ray":
+        raise InputError("--address joins a Ray cluster: add --backend ray")
+    if workers is not None and workers < 1:
+        raise InputError(f"--workers must be at least 1, got {workers}")
+    if backend == "local":
+        workers = default_workers() if workers is None else workers
+        return _reproduce(out, scale, seeds, device, workers, log, argv, worlds, run_jobs)
+    from functools import partial
+
+    from sensorimotor.learn.train import resolve_device
+    from sensorimotor.report import ray_backend
+
+    gpus = GPU_SHARE if resolve_device(device) == "cuda" else 0.0
+    with ray_backend.ray_session(address, workers) as cpus:
+        runner = partial(ray_backend.run_jobs, gpus=gpus)
+        workers = cpus if workers is None else workers
+        return _reproduce(out, scale, seeds, device, workers, log, argv, worlds, runner)
+
+
+def _reproduce(out, scale, seeds, device, workers, log, argv, worlds, run_jobs) -> Reproduction:
+    """``reproduce`` with its jobs run by ``run_jobs`` (``workers.run_jobs``'s signature)."""
     if scale not in SCALES:
         raise InputError(f"unknown scale {scale!r}: use one of {', '.join(SCALES)}")
     sc = SCALES[scale]
     seeds = sc.seeds if seeds is None else seeds
     if seeds < 1:
         raise InputError(f"--seeds must be at least 1, got {seeds}")
-    if workers < 1:
-        raise InputError(f"--workers must be at least 1, got {workers}")
     trained = check_worlds(worlds)
     from sensorimotor.learn.train import resolve_device
 
@@ -545,30 +574,3 @@ def reproduce(
     rep.timings["total"] = {"seconds": time.perf_counter() - t_start}
     _write_json(out / "timings.json", rep.timings)
     return rep
-
-
-def hardware() -> dict:
-    """What the numbers were measured on."""
-
-    import torch
-
-    info = {
-        "python": platform.python_version(),
-        "platform": platform.platform(),
-        "processor": _cpu_name(),
-        "cpus": default_workers(),
-        "torch": torch.__version__,
-        "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
-        "sensorimotor": __version__,
-    }
-    return info
-
-
-def _cpu_name() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"

@@ -1,0 +1,153 @@
+"""The Ray backend: jobs as Ray tasks behave as the local workers' jobs (results, progress,
+failures, Ctrl-C), `reproduce --backend ray` writes the local Table I, and a sweep on Ray
+(ASHA) is killed and resumed. One local Ray (2 CPUs, no dashboard, a small object store) is
+started in this process for the whole module; subprocesses join it with --address."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import matplotlib.image as mpimg
+import pytest
+
+from sensorimotor.errors import InputError
+from sensorimotor.report import ray_backend, workers
+from sensorimotor.report.workers import Job, report
+
+ray = pytest.importorskip("ray")
+
+
+@pytest.fixture(scope="module")
+def cluster() -> str:
+    """A local Ray in this process; its address, for subprocesses to join."""
+    ray.init(num_cpus=2, include_dashboard=False, object_store_memory=80 * 2**20)
+    # the tasks run this module's functions: send them by value (tests/ is not on the
+    # workers' path)
+    ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    yield ray.get_runtime_context().gcs_address
+    ray.cloudpickle.unregister_pickle_by_value(sys.modules[__name__])
+    ray.shutdown()
+
+
+def _square(name: str, x: int) -> int:
+    report(name, f"squaring {x}")
+    if x < 0:
+        raise InputError(f"cannot square {x} here")
+    report(name, "done")
+    return x * x
+
+
+def _then(name: str, result: int) -> list[Job]:
+    """A follow-up job for each first-round job."""
+    return [] if name.endswith("+") else [Job(f"{name}+", _square, (f"{name}+", result + 1))]
+
+
+def _run(run_jobs, jobs_workers: int) -> tuple[dict, list, list]:
+    lines: list[tuple[str, str]] = []
+    jobs = [Job(n, _square, (n, x)) for n, x in (("a", 2), ("b", -1), ("c", 3))]
+    results, failures = run_jobs(jobs, jobs_workers, lambda n, m: lines.append((n, m)), then=_then)
+    named = [(f.name, type(f.error), str(f.error)) for f in failures]
+    by_job = {n: [m for k, m in lines if k == n] for n in dict.fromkeys(k for k, _ in lines)}
+    return results, named, sorted(by_job.items())
+
+
+def test_jobs_on_ray_give_what_local_jobs_give(cluster):
+    assert _run(ray_backend.run_jobs, 2) == _run(workers.run_jobs, 1)
+    results, failures, _ = _run(ray_backend.run_jobs, 2)
+    assert results == {"a": 4, "c": 9, "a+": 25, "c+": 100}
+    assert failures == [("b", InputError, "cannot square -1 here")]
+
+
+def _sleep_then_write(path: str) -> None:
+    report(path, "started")
+    time.sleep(2)
+    Path(path).write_text("finished")
+
+
+def test_ctrl_c_cancels_the_runs_tasks(cluster, tmp_path):
+    paths = [str(tmp_path / f"job{i}") for i in range(2)]
+
+    def interrupt(_name, _message):
+        raise KeyboardInterrupt
+
+    jobs = [Job(p, _sleep_then_write, (p,)) for p in paths]
+    with pytest.raises(KeyboardInterrupt):
+        ray_backend.run_jobs(jobs, 2, interrupt)
+    time.sleep(3)  # a task left running would have written its file by now
+    assert not any(Path(p).exists() for p in paths)
+
+
+def _table(out: Path) -> dict:
+    table = json.loads((out / "table1.json").read_text())
+    for run in table["runs"]:
+        run.pop("run")  # the run folder's path: the only difference allowed
+    return table
+
+
+@pytest.mark.slow  # two smoke reproductions of Square, one on Ray
+def test_reproduce_on_ray_writes_the_local_table(cluster, tmp_path):
+    from sensorimotor.report.reproduce import reproduce
+
+    lines: list[str] = []
+    kwargs = {"scale": "smoke", "worlds": ["square"]}
+    reproduce(tmp_path / "ray", **kwargs, workers=2, backend="ray", log=lines.append)
+    # the local reference in this process (the jobs' results do not depend on where they run)
+    reproduce(tmp_path / "local", **kwargs, workers=1, log=lambda _: None)
+    assert _table(tmp_path / "ray") == _table(tmp_path / "local")
+    assert any("square__rec-sm__s0: epoch   1" in line for line in lines)  # the same display
+
+
+SWEEP = """data = "sq.npz"
+[train]
+model = "s"
+max_epochs = 2
+[space]
+lr = [3e-4, 1e-3, 3e-3, 1e-2]
+batch_size = [32, 64]
+[asha]
+grace_period = 1
+reduction_factor = 2
+"""
+
+
+@pytest.mark.slow  # eight trials on Ray, twice started
+def test_a_sweep_on_ray_killed_and_resumed(cluster, tmp_path):
+    from sensorimotor.sim.database import generate, save_database
+    from sensorimotor.sim.world import load_world
+
+    save_database(generate(load_world("square"), 5_000, seed=0), tmp_path / "sq.npz")
+    (tmp_path / "sweep.toml").write_text(SWEEP)
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "sensorimotor", "sweep", str(tmp_path / "sweep.toml")]
+    cmd += ["--out", str(out), "--backend", "ray", "--address", cluster]
+    proc = subprocess.Popen(
+        cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
+    )
+    deadline = time.time() + 300
+    while time.time() < deadline and not list((out / "runs").glob("*/checkpoint.pt")):
+        time.sleep(0.02)
+    assert proc.poll() is None, "finished before a checkpoint was seen"
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    done = subprocess.run([*cmd, "--resume"], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "restoring the Ray Tune experiment" in done.stderr
+    assert done.stdout.startswith("sensorimotor train s --data")  # Tune's lines: on stderr
+    with open(out / "sweep.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [r["trial"] for r in rows] == [f"trial_{i:03d}" for i in range(8)]
+    for r in rows:
+        with open(Path(r["run"]) / "history.csv", newline="") as f:
+            epochs = [int(h["epoch"]) for h in csv.DictReader(f)]
+        assert epochs == list(range(len(epochs)))  # every epoch once, resumed or not
+        assert r["stopped"] == ("max epochs" if len(epochs) == 2 else "ASHA")
+    assert any(r["stopped"] == "max epochs" for r in rows)
+    assert "ASHA early termination" in (out / "sweep.md").read_text()
+    assert mpimg.imread(out / "sweep.png").shape[1] > 600
