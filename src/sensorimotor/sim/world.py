@@ -28,9 +28,8 @@ BUILTIN_WORLDS = ("square", "rooms1", "rooms2")
 START_CLEARANCE = 1.0  # a start position keeps at least this distance to every wall (units)
 MAX_SIZE = 10_000.0  # units a side: beyond it a world is a typo (the paper's are 50)
 MAX_WALLS = 10_000  # every ray is tested against every wall, every step
-NAME_PATTERN = re.compile(
-    r"[A-Za-z0-9][A-Za-z0-9_.+-]{0,99}"
-)  # names run folders: no / or .., short
+# a name names run folders: no / or .., and short enough for any file system
+NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]{0,99}")
 
 
 @dataclass(frozen=True, eq=False)
