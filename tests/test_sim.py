@@ -12,6 +12,7 @@ import pytest
 import reference_sim as ref
 from sensorimotor.sim import core as sim
 from sensorimotor.sim.database import generate, load_database, save_database
+from sensorimotor.sim.grid import NO_GRID
 from sensorimotor.sim.world import (
     BUILTIN_WORLDS,
     load_world,
@@ -33,6 +34,21 @@ WORLDS = {name: load_world(name) for name in BUILTIN_WORLDS} | {"oblique": OBLIQ
 
 def world(walls, size=50):
     return world_from_dict({"size": size, "walls": walls})
+
+
+def run_kernel(
+    w, angles, start, uniforms, noise, sensors, motors, poses, relative=False, dropped=None,
+    motor=None, grid=NO_GRID, max_range=10.0,
+):  # fmt: skip
+    """``sim._rollout`` on the all-walls loop (or ``grid``), no noise unless given."""
+    n = len(angles)
+    return sim._rollout(
+        np.ascontiguousarray(w.segments), *grid.arrays(), np.asarray(angles, dtype=np.float64),
+        max_range, tuple(angles) == sim.DEFAULT_LAYOUT.angles, *start, uniforms,
+        noise if noise is not None else np.zeros((0, n)), relative,
+        dropped if dropped is not None else np.zeros((0, n), dtype=bool),
+        motor if motor is not None else np.zeros((0, 2)), sensors, motors, poses,
+    )  # fmt: skip
 
 
 def readings(w, x, y, heading):
@@ -187,10 +203,7 @@ def test_rollout_kernel_matches_the_reference_step_by_step(name):
     uniforms = rng.random((steps, 2))
     noise = np.zeros((steps, 5))
     sensors, motors, poses = np.empty((steps, 5)), np.empty((steps, 2)), np.empty((steps, 3))
-    end = sim._rollout(
-        np.ascontiguousarray(w.segments), ANGLES, 10.0, *start, uniforms, noise,
-        sensors, motors, poses,
-    )  # fmt: skip
+    end = run_kernel(w, ANGLES, start, uniforms, noise, sensors, motors, poses)
     r_sensors, r_motors, r_poses = ref.rollout(
         [tuple(s) for s in w.segments.tolist()], ANGLES.tolist(), 10.0, start, uniforms.tolist()
     )
@@ -213,10 +226,7 @@ def test_noisy_rollout_kernel_matches_the_reference():
     uniforms = rng.random((steps, 2))
     noise = rng.normal(0.0, 0.3, (steps, 5))
     sensors, motors, poses = np.empty((steps, 5)), np.empty((steps, 2)), np.empty((steps, 3))
-    sim._rollout(
-        np.ascontiguousarray(w.segments), ANGLES, 10.0, *start, uniforms, noise,
-        sensors, motors, poses,
-    )  # fmt: skip
+    run_kernel(w, ANGLES, start, uniforms, noise, sensors, motors, poses)
     r_sensors, r_motors, r_poses = ref.rollout(
         [tuple(s) for s in w.segments.tolist()],
         ANGLES.tolist(),

@@ -251,7 +251,7 @@ def _history_csv(history: list[EpochRecord]) -> str:
 def run_meta(data: Path, db: Database, config: TrainConfig, sha256: str | None = None) -> dict:
     """What a run folder's ``config.json`` records: model, training config, data, version."""
     return {
-        "model": ModelConfig(kind=config.model).to_dict(),
+        "model": ModelConfig(kind=config.model, n_sensors=db.sensors.shape[1]).to_dict(),
         "train": {k: v for k, v in asdict(config).items() if k != "device"},
         "data": {
             "path": str(data),
