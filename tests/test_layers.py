@@ -25,7 +25,8 @@ LAYERS = {
     "analysis": {"errors", "files", "version", "sim", "learn"},
     "report": {"errors", "files", "version", "sim", "learn", "analysis"},
     "envs": {"errors", "sim"},
-    "cli": {"errors", "files", "version", "sim", "learn", "analysis", "report"},
+    "cli": {"errors", "files", "version", "sim", "learn", "analysis", "report", "cli_world"},
+    "cli_world": {"errors", "files", "sim"},
     "__main__": {"cli"},
     "__init__": {"errors", "version", "sim", "learn", "analysis", "report"},
 }

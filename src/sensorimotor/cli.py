@@ -11,6 +11,7 @@ import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
+from sensorimotor.cli_world import world_app
 from sensorimotor.errors import InputError
 from sensorimotor.sim.core import MAX_SEED
 from sensorimotor.version import __version__
@@ -119,6 +120,7 @@ plot_app = typer.Typer(
     no_args_is_help=True,
 )
 app.add_typer(plot_app, name="plot")
+app.add_typer(world_app, name="world")
 PlotOut = Annotated[Path, typer.Option(help="Output .png (written atomically).")]
 PlotSvg = Annotated[bool, typer.Option(help="Also write an .svg beside the .png.")]
 
