@@ -115,7 +115,8 @@ def points_in_view(
 ) -> np.ndarray:
     """(N, P) bool: point p is inside pose n's sensor fan, within range, with a clear line of sight.
 
-    The fan is ``[heading + min(angles), heading + max(angles)]``. Candidates (in the fan, at
+    The fan is ``[heading + min(angles), heading + max(angles)]``, or every direction for a
+    layout spread over a full turn (its gap behind no wider than the gap between its rays). Candidates (in the fan, at
     distance ``0 < r <= max_range``) get one ray each, cast by ``sim.read_sensors`` toward the
     point; the point is visible when that ray's first hit is at ``>= r - SIGHT_TOL``.
     Cost: O(N P) numpy (in chunks of CHUNK poses) plus one numba ray per candidate; 100k poses
@@ -128,6 +129,8 @@ def points_in_view(
     if len(points) == 0:
         return visible
     layout = SensorLayout(angles=(0.0,), max_range=max_range + 1.0)  # one ray, past the point
+    spread = angles.max() - angles.min()
+    full_turn = len(angles) > 1 and 2 * np.pi - spread <= spread / (len(angles) - 1) + 1e-9
     for start in range(0, len(poses), CHUNK):
         p = poses[start : start + CHUNK]  # (C, 3)
         dx = points[None, :, 0] - p[:, 0, None]  # (C, P)
@@ -136,6 +139,7 @@ def points_in_view(
         bearing = np.arctan2(dy, dx)  # (C, P) absolute direction of the point
         rel = np.remainder(bearing - p[:, 2, None] + np.pi, 2 * np.pi) - np.pi  # (C, P)
         cand = (rel >= angles.min() - 1e-12) & (rel <= angles.max() + 1e-12)
+        cand |= full_turn  # the fan closes: the gap behind is no wider than between its rays
         cand &= (dist > 0) & (dist <= max_range)
         rows, cols = np.nonzero(cand)  # (K,) each
         if rows.size:
