@@ -227,6 +227,7 @@ def _rollout(
     noisy_run = noise.shape[0] > 0
     drop_run = dropped.shape[0] > 0
     motor_run = motor_noise.shape[0] > 0
+    all_walls = dims[1] == 0.0
     for t in range(uniforms.shape[0]):
         poses[t, 0] = x
         poses[t, 1] = y
@@ -237,9 +238,12 @@ def _rollout(
             # direction of heading + angle[i], by the angle-sum identities (one sincos a step)
             dx[i] = ch * ca[i] - sh * sa[i]
             dy[i] = sh * ca[i] + ch * sa[i]
-        ray_id = _cast(
-            segments, dims, start, items, stamp, ray_id, x, y, dx, dy, max_range, readings
-        )
+        if all_walls:  # the paper's worlds: the all-walls loop, called here to be inlined
+            _cast_many(segments, x, y, dx, dy, max_range, readings)
+        else:
+            ray_id = cast_grid(
+                segments, dims, start, items, stamp, ray_id, x, y, dx, dy, max_range, readings
+            )
         seen = readings
         if not paper_rays:
             for i in range(5):
@@ -250,10 +254,13 @@ def _rollout(
             )
             seen = hidden
         lowest = max_range if paper_rays else MAX_RANGE
-        for i in range(seen.shape[0]):
-            lowest = min(lowest, seen[i])
+        if not paper_rays:
+            for i in range(5):
+                lowest = min(lowest, hidden[i])
         for i in range(n_rays):
             value = readings[i]
+            if paper_rays:  # one loop, as before layouts of any size
+                lowest = min(lowest, value)
             if noisy_run:
                 value = value + (value * noise[t, i] if relative else noise[t, i])
             if drop_run and dropped[t, i]:
