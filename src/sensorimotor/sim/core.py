@@ -3,7 +3,9 @@
 Every kernel here is a pure array function compiled with numba; randomness is drawn outside the
 kernels (uniforms in bulk from a ``numpy.random.Generator``) so one seed gives the same bytes
 whatever the chunking. The database generator, the Gymnasium environment and the figures all
-call these kernels; there is no other ray caster in the package.
+call these kernels; there is no other ray caster in the package. Big worlds are cast through
+the walls' grid (``sim.grid``), small ones with the all-walls loop (``_cast_many``), behind one
+door (``_cast``, ``grid.for_rays``): the same arithmetic, the same bits.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ import numba
 import numpy as np
 
 from sensorimotor.errors import InputError
-from sensorimotor.sim.grid import WallGrid, cast_grid
+from sensorimotor.sim.grid import WallGrid, cast_grid, for_rays
 from sensorimotor.sim.world import START_CLEARANCE, World, free_start_cells, point_segment_distance
 
 SENSOR_ANGLES = np.array([-0.6, -0.3, 0.0, 0.3, 0.6])  # rad from the heading; index 0 rightmost
@@ -244,7 +246,6 @@ def _rollout(
             ray_id = cast_grid(
                 segments, dims, start, items, stamp, ray_id, x, y, dx, dy, max_range, readings
             )
-        seen = readings
         if not paper_rays:
             for i in range(5):
                 pdx[i] = ch * pa[0][i] - sh * pa[1][i]
@@ -252,7 +253,6 @@ def _rollout(
             ray_id = _cast(
                 segments, dims, start, items, stamp, ray_id, x, y, pdx, pdy, MAX_RANGE, hidden
             )
-            seen = hidden
         lowest = max_range if paper_rays else MAX_RANGE
         if not paper_rays:
             for i in range(5):
@@ -270,7 +270,8 @@ def _rollout(
         motors[t, 0] = d
         motors[t, 1] = r
         if motor_run:
-            d = min(max(d + motor_noise[t, 0], 0.0), 0.99 * seen[2])  # seen[2]: straight ahead
+            ahead = readings[2] if paper_rays else hidden[2]  # the paper's ray straight ahead
+            d = min(max(d + motor_noise[t, 0], 0.0), 0.99 * ahead)
             r = r + motor_noise[t, 1]
         # apply_motor(x, y, heading, d, r), reusing this step's cos and sin of the heading
         x = x + d * ch
@@ -348,7 +349,8 @@ def rollout(
     normal added to each reading (``noise_kind="absolute"``, units) or to it as a fraction
     (``"relative"``); a reading drops out (reads the range) with probability ``dropout``; the
     executed command is the recorded one plus a normal of ``motor_noise_std`` on ``d`` and on
-    ``r`` (see ``_rollout``). ``grid`` overrides the world's own (``World.grid``).
+    ``r`` (see ``_rollout``). ``grid`` overrides the choice of ``grid.for_rays`` (the
+    world's grid, or none where the all-walls loop is faster): the same bits either way.
     ``progress(n)`` is called after each chunk with the number of steps done.
     """
     if steps < 1:
@@ -356,7 +358,9 @@ def rollout(
     check_noise(noise_std, noise_kind, dropout, motor_noise_std)
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     segments = np.ascontiguousarray(world.segments)
-    dims, start_, items = (grid if grid is not None else world.grid).arrays()
+    if grid is None:
+        grid = for_rays(world.grid, len(segments), len(layout.angles))
+    dims, start_, items = grid.arrays()
     angles = np.asarray(layout.angles, dtype=np.float64)
     paper_rays = layout.angles == DEFAULT_LAYOUT.angles and layout.max_range >= TURN_THRESHOLD
     n = len(angles)
@@ -409,7 +413,7 @@ def read_sensors(
     poses = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
     return _read_many(
         np.ascontiguousarray(world.segments),
-        *world.grid.arrays(),
+        *for_rays(world.grid, len(world.segments), len(layout.angles)).arrays(),
         poses,
         np.asarray(layout.angles, dtype=np.float64),
         float(layout.max_range),

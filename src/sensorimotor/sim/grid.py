@@ -54,6 +54,13 @@ class WallGrid:
 NO_GRID = WallGrid(1.0, 0, 0, np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int32))
 
 
+def for_rays(grid: WallGrid, n_walls: int, n_rays: int) -> WallGrid:
+    """``grid``, or ``NO_GRID`` where the all-walls loop is faster: it tests the rays of one
+    step against a wall in one vectorised pass, so the more rays, the more walls it takes
+    before the grid wins (about as many walls as rays, measured by benchmarks/bench_sim.py)."""
+    return grid if n_walls >= max(GRID_MIN_WALLS, n_rays) else NO_GRID
+
+
 def build_grid(
     segments: np.ndarray, width: float, height: float, force: bool = False, cell: float = 0.0
 ) -> WallGrid:
@@ -152,13 +159,17 @@ def cast_grid(segments, dims, start, items, stamp, ray_id, x, y, dx, dy, max_ran
     cell = dims[0]
     nx = int(dims[1])
     ny = int(dims[2])
+    ix0 = max(0, min(nx - 1, math.floor(x / cell)))  # the origin's cell, shared by every ray
+    iy0 = max(0, min(ny - 1, math.floor(y / cell)))
     for i in range(out.shape[0]):
         ux = dx[i]
         uy = dy[i]
-        ix = max(0, min(nx - 1, math.floor(x / cell)))
-        iy = max(0, min(ny - 1, math.floor(y / cell)))
+        ix = ix0
+        iy = iy0
         sx = 1 if ux > 0.0 else -1
         sy = 1 if uy > 0.0 else -1
+        inv_x = 1.0 / ux if ux != 0.0 else np.inf  # a ray along an axis never leaves across it
+        inv_y = 1.0 / uy if uy != 0.0 else np.inf
         best = max_range
         while True:
             c = iy * nx + ix
@@ -168,8 +179,8 @@ def cast_grid(segments, dims, start, items, stamp, ray_id, x, y, dx, dy, max_ran
                     stamp[k] = ray_id
                     best = _hit(segments, k, x, y, ux, uy, best)
             # where the ray leaves this cell: through its x side or its y side
-            tx = ((ix + (sx > 0)) * cell - x) / ux if ux != 0.0 else np.inf
-            ty = ((iy + (sy > 0)) * cell - y) / uy if uy != 0.0 else np.inf
+            tx = ((ix + (sx > 0)) * cell - x) * inv_x if ux != 0.0 else np.inf
+            ty = ((iy + (sy > 0)) * cell - y) * inv_y if uy != 0.0 else np.inf
             if tx <= ty:
                 if best <= tx:
                     break
