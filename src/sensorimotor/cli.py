@@ -423,7 +423,7 @@ def plot_perception_cmd(
     out: PlotOut = Path("perception.png"),
     svg: PlotSvg = False,
 ) -> None:
-    """Fig. 3: what the agent perceives (5 red dots) in the paper's five situations.
+    """Fig. 3: what the agent perceives (a red dot a ray) in the paper's five situations.
 
     The situations (nothing, line, corner, wall at its left, wall end) are found in the
     database by pose and readings; a wall end needs a world with inner walls (rooms1).
@@ -452,7 +452,7 @@ def analyze(
     run: Annotated[
         str,
         typer.Argument(
-            help="A run folder made by `sensorimotor train`, or `raw` for the 5 readings / 10."
+            help="A run folder made by `sensorimotor train`, or `raw` for the readings / range."
         ),
     ],
     data: Annotated[Path, typer.Option(help="Database whose test split is analysed (.npz).")],

@@ -133,7 +133,7 @@ class LaserWorldEnv(gym.Env[np.ndarray, np.ndarray]):
     paper's 5 noiseless readings, what ``paper_policy`` reads to walk as ``generate`` does.
     ``gym.make("sensorimotor.envs:sensorimotor/LaserWorld-v0")`` imports the module itself.
     ``render()`` with ``render_mode="rgb_array"`` returns an ``(H, W, 3)`` ``uint8`` image: the
-    walls, the agent with its heading, and the 5 rays to the points they perceive (red dots),
+    walls, the agent with its heading, and its rays to the points they perceive (red dots),
     drawn by ``sensorimotor.sim.plots.plot_perception`` (matplotlib, imported on first render).
 
     ## Version History

@@ -1,6 +1,6 @@
 """Prediction error of trained encoders, the two baselines, and the representation z_s.
 
-The error is the paper's L2 error (Eq. 1): per step, the squared error summed over the 5
+The error is the paper's L2 error (Eq. 1): per step, the squared error summed over the
 scaled sensors; then the mean over every predicted step of the split. Recurrent models run over
 the whole split from a zero state, carrying it, as an agent would online.
 """
