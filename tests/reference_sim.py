@@ -92,6 +92,10 @@ def apply_motor(
     return x + d * math.cos(heading), y + d * math.sin(heading), wrap_angle(heading + r)
 
 
+PAPER_ANGLES = (-0.6, -0.3, 0.0, 0.3, 0.6)  # the rays the behaviour reads (rad)
+PAPER_RANGE = 10.0
+
+
 def rollout(
     segments: Sequence[Segment],
     angles: Sequence[float],
@@ -99,37 +103,55 @@ def rollout(
     start: tuple[float, float, float],
     uniforms: Sequence[Sequence[float]],
     noise: Sequence[Sequence[float]] | None = None,
+    relative: bool = False,
+    dropped: Sequence[Sequence[bool]] | None = None,
+    motor_noise: Sequence[Sequence[float]] | None = None,
 ) -> tuple[list[list[float]], list[list[float]], list[list[float]]]:
     """Run one step per row of ``uniforms`` (T, 2) from ``start``: (sensors, motors, poses).
 
-    Row t: the pose, the readings taken there (plus ``noise[t]``, clipped to [0, max_range];
-    the behaviour sees the noiseless ones) and the command chosen from them. Ray directions come
+    Row t: the pose, the readings taken there and the command chosen. The behaviour reads the
+    paper's five rays, noiseless: the recorded ones when ``angles`` are the paper's (and the
+    range at least 1), else five more cast for it alone. Recorded: the reading plus
+    ``noise[t][i]`` (times the reading when ``relative``), the range where ``dropped[t][i]``,
+    clipped to [0, max_range]. The executed command is the chosen one plus ``motor_noise[t]``,
+    its translation clipped to [0, 0.99 x the distance straight ahead]. Ray directions come
     from the heading's ``cos``/``sin`` and the angle-sum identities, as in the numba kernel.
     """
+    paper = tuple(angles) == PAPER_ANGLES and max_range >= TURN_THRESHOLD
     cos_a = [math.cos(a) for a in angles]
     sin_a = [math.sin(a) for a in angles]
+    cos_p = [math.cos(a) for a in PAPER_ANGLES]
+    sin_p = [math.sin(a) for a in PAPER_ANGLES]
     x, y, heading = start
     sensors, motors, poses = [], [], []
     for t, (u0, u1) in enumerate(uniforms):
         poses.append([x, y, heading])
         ch = math.cos(heading)
         sh = math.sin(heading)
-        lowest = max_range
+        recorded = [
+            cast(segments, x, y, ch * c - sh * s, sh * c + ch * s, max_range)
+            for c, s in zip(cos_a, sin_a, strict=True)
+        ]
+        seen = recorded
+        if not paper:
+            seen = [
+                cast(segments, x, y, ch * c - sh * s, sh * c + ch * s, PAPER_RANGE)
+                for c, s in zip(cos_p, sin_p, strict=True)
+            ]
+        lowest = min([max_range if paper else PAPER_RANGE, *seen])
         row = []
-        for i in range(len(angles)):
-            reading = cast(
-                segments,
-                x,
-                y,
-                ch * cos_a[i] - sh * sin_a[i],
-                sh * cos_a[i] + ch * sin_a[i],
-                max_range,
-            )
-            lowest = min(lowest, reading)
-            extra = 0.0 if noise is None else noise[t][i]
-            row.append(min(max(reading + extra, 0.0), max_range))
+        for i, reading in enumerate(recorded):
+            value = reading
+            if noise is not None:
+                value = value + (value * noise[t][i] if relative else noise[t][i])
+            if dropped is not None and dropped[t][i]:
+                value = max_range
+            row.append(min(max(value, 0.0), max_range))
         sensors.append(row)
         d, r = behaviour(lowest, u0, u1)
         motors.append([d, r])
+        if motor_noise is not None:
+            d = min(max(d + motor_noise[t][0], 0.0), 0.99 * seen[2])
+            r = r + motor_noise[t][1]
         x, y, heading = apply_motor(x, y, heading, d, r)
     return sensors, motors, poses

@@ -12,7 +12,7 @@ import pytest
 from conftest import assert_one_line_error
 from sensorimotor.sim.database import generate, load_database
 from sensorimotor.sim.world import load_world
-from test_world import BAD_WORLD_FILES
+from sim.test_world import BAD_WORLD_FILES
 
 # the world-file problems of DESIGN.md, each through the real command
 CLI_BAD_WORLDS = [

@@ -233,5 +233,9 @@ def test_runs_and_databases_may_be_paths_or_loaded(two_seeds, square_db_path):
 
 def test_errors_name_an_in_memory_database_by_its_world(two_seeds):
     db = generate(load_world("square"), 20_000, seed=3, layout=SensorLayout(max_range=20.0))
-    with pytest.raises(InputError, match=r"^the in-memory database of square: sensor layout"):
+    with pytest.raises(
+        InputError,
+        match=r"^the in-memory database of square: recorded with 5 rays .* range 20; run .* "
+        r"trained on 5 rays .* range 10$",
+    ):
         representation(two_seeds / "sm0", db)

@@ -12,6 +12,7 @@ import pytest
 import reference_sim as ref
 from sensorimotor.sim import core as sim
 from sensorimotor.sim.database import generate, load_database, save_database
+from sensorimotor.sim.grid import NO_GRID
 from sensorimotor.sim.world import (
     BUILTIN_WORLDS,
     load_world,
@@ -33,6 +34,21 @@ WORLDS = {name: load_world(name) for name in BUILTIN_WORLDS} | {"oblique": OBLIQ
 
 def world(walls, size=50):
     return world_from_dict({"size": size, "walls": walls})
+
+
+def run_kernel(
+    w, angles, start, uniforms, noise, sensors, motors, poses, relative=False, dropped=None,
+    motor=None, grid=NO_GRID, max_range=10.0,
+):  # fmt: skip
+    """``sim._rollout`` on the all-walls loop (or ``grid``), no noise unless given."""
+    n = len(angles)
+    return sim._rollout(
+        np.ascontiguousarray(w.segments), *grid.arrays(), np.asarray(angles, dtype=np.float64),
+        max_range, tuple(angles) == sim.DEFAULT_LAYOUT.angles, *start, uniforms,
+        noise if noise is not None else np.zeros((0, n)), relative,
+        dropped if dropped is not None else np.zeros((0, n), dtype=bool),
+        motor if motor is not None else np.zeros((0, 2)), sensors, motors, poses,
+    )  # fmt: skip
 
 
 def readings(w, x, y, heading):
@@ -187,10 +203,7 @@ def test_rollout_kernel_matches_the_reference_step_by_step(name):
     uniforms = rng.random((steps, 2))
     noise = np.zeros((steps, 5))
     sensors, motors, poses = np.empty((steps, 5)), np.empty((steps, 2)), np.empty((steps, 3))
-    end = sim._rollout(
-        np.ascontiguousarray(w.segments), ANGLES, 10.0, *start, uniforms, noise,
-        sensors, motors, poses,
-    )  # fmt: skip
+    end = run_kernel(w, ANGLES, start, uniforms, noise, sensors, motors, poses)
     r_sensors, r_motors, r_poses = ref.rollout(
         [tuple(s) for s in w.segments.tolist()], ANGLES.tolist(), 10.0, start, uniforms.tolist()
     )
@@ -213,10 +226,7 @@ def test_noisy_rollout_kernel_matches_the_reference():
     uniforms = rng.random((steps, 2))
     noise = rng.normal(0.0, 0.3, (steps, 5))
     sensors, motors, poses = np.empty((steps, 5)), np.empty((steps, 2)), np.empty((steps, 3))
-    sim._rollout(
-        np.ascontiguousarray(w.segments), ANGLES, 10.0, *start, uniforms, noise,
-        sensors, motors, poses,
-    )  # fmt: skip
+    run_kernel(w, ANGLES, start, uniforms, noise, sensors, motors, poses)
     r_sensors, r_motors, r_poses = ref.rollout(
         [tuple(s) for s in w.segments.tolist()],
         ANGLES.tolist(),
@@ -460,3 +470,74 @@ def test_start_heading_minus_pi_becomes_pi():
 def test_steps_must_be_positive():
     with pytest.raises(ValueError, match="at least 1"):
         sim.rollout(load_world("square"), 0)
+
+
+# ---------------------------------------------------------------- the walls' grid index
+
+
+def many_walls(n: int, side: float, seed: int = 0):
+    """A world of ``n`` walls, half axis-aligned on integer points (junctions, shared ends,
+    collinear runs), half at any angle."""
+    rng = np.random.default_rng(seed)
+    walls = []
+    while len(walls) < n:
+        x0, y0 = rng.uniform(0, side, 2)
+        if rng.random() < 0.5:
+            x0, y0, k = round(x0), round(y0), int(rng.integers(1, 8))
+            wall = (
+                [x0, y0, min(x0 + k, side), y0]
+                if rng.random() < 0.5
+                else [x0, y0, x0, min(y0 + k, side)]
+            )
+        else:
+            a, k = rng.uniform(0, 2 * math.pi), rng.uniform(0.5, 6)
+            wall = [
+                x0,
+                y0,
+                float(np.clip(x0 + k * math.cos(a), 0, side)),
+                float(np.clip(y0 + k * math.sin(a), 0, side)),
+            ]
+        if wall[:2] != wall[2:]:
+            walls.append(wall)
+    return world_from_dict({"name": f"walls{n}", "size": side, "walls": walls})
+
+
+@pytest.mark.parametrize("name", [*WORLDS, "many"])
+def test_the_grid_reads_the_same_bits_as_the_all_walls_loop(name):
+    """Every reading through the grid is the all-walls loop's to the bit: random poses, poses on
+    cell edges and wall ends (integer points), rays at every angle, short and long ranges."""
+    from sensorimotor.sim.grid import build_grid
+
+    w = WORLDS[name] if name != "many" else many_walls(400, 80.0)
+    rng = np.random.default_rng(5)
+    n = 4000
+    poses = np.stack(
+        [rng.uniform(0, w.width, n), rng.uniform(0, w.height, n), rng.uniform(-4, 4, n)], 1
+    )
+    poses[:500, :2] = np.round(poses[:500, :2])
+    angles = np.linspace(-math.pi, math.pi, 90, endpoint=False)
+    segments = np.ascontiguousarray(w.segments)
+    for cell in (0.0, 1.0, 2.5):
+        grid = build_grid(segments, w.width, w.height, force=True, cell=cell)
+        assert grid.nx > 0
+        for max_range in (10.0, 200.0):
+            plain = sim._read_many(segments, *NO_GRID.arrays(), poses, angles, max_range)
+            fast = sim._read_many(segments, *grid.arrays(), poses, angles, max_range)
+            assert (plain.view(np.int64) == fast.view(np.int64)).all()
+            assert (plain < max_range).mean() > 0.2  # walls are hit: the check can fail
+
+
+def test_a_world_of_many_walls_rolls_out_through_its_grid_as_without():
+    w = many_walls(300, 60.0, seed=1)
+    assert w.grid.nx > 0  # big enough for a grid; the paper's worlds are not
+    assert all(WORLDS[name].grid.nx == 0 for name in BUILTIN_WORLDS)
+    layout = sim.spread_layout(32, 2 * math.pi)
+    fast = sim.rollout(w, 3000, seed=2, layout=layout)
+    plain = sim.rollout(w, 3000, seed=2, layout=layout, grid=NO_GRID)
+    for a, b in zip(
+        (fast.sensors, fast.motors, fast.poses),
+        (plain.sensors, plain.motors, plain.poses),
+        strict=True,
+    ):
+        assert a.tobytes() == b.tobytes()
+    assert (fast.motors[:, 0] == 0).mean() > 0.05  # it meets walls

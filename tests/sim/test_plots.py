@@ -173,12 +173,14 @@ def test_perception_figure_draws_a_databases_own_sensor_layout():
         assert np.all(gaps < 1e-4), ax.get_title()  # every hit drawn on a wall, at its own angle
 
 
-def test_generate_refuses_a_layout_the_encoders_or_the_behaviour_cannot_use():
+def test_generate_records_any_layout_and_walks_the_paper_path():
+    """Layouts of any size (issue 23): 6 rays are 6 columns, and a layout without a ray straight
+    ahead walks the path of the paper's (the behaviour reads the paper's 5 rays)."""
     world = load_world("square")
-    with pytest.raises(ValueError, match="5 readings"):
-        generate(world, 100, layout=sim.SensorLayout(angles=(-0.6, -0.3, 0.0, 0.3, 0.6, 0.9)))
-    with pytest.raises(ValueError, match="straight ahead"):
-        generate(world, 100, layout=sim.SensorLayout(angles=(-1.2, -0.6, 0.1, 0.6, 1.2)))
+    six = generate(world, 100, layout=sim.SensorLayout(angles=(-0.6, -0.3, 0.0, 0.3, 0.6, 0.9)))
+    assert six.sensors.shape == (100, 6)
+    blind = generate(world, 100, layout=sim.SensorLayout(angles=(-1.2, -0.6, 0.1, 0.6, 1.2)))
+    np.testing.assert_array_equal(blind.poses, generate(world, 100).poses)
 
 
 def test_panels_take_the_shape_of_their_world():

@@ -53,15 +53,18 @@ BAD_WORLD_FILES = {
         "no free start position",
     ),
     "name_empty": ("name = ''\nsize = 50\nwalls = []\n", "'name'"),
-    "name_a_path": ("name = '../escape'\nsize = 50\nwalls = []\n", "'name' must be 1 to 100 letters"),
+    "name_a_path": (
+        "name = '../escape'\nsize = 50\nwalls = []\n",
+        "'name' must be 1 to 100 letters",
+    ),
     "name_a_folder": ("name = 'a/b'\nsize = 50\nwalls = []\n", "'name' must be 1 to 100 letters"),
     "name_newline": ("name = 'a\\nb'\nsize = 50\nwalls = []\n", "'name' must be 1 to 100 letters"),
     "size_huge_int": ("size = 1" + "0" * 400 + "\nwalls = []\n", "not a finite number"),
     "size_huge": ("size = 1e300\nwalls = []\n", "at most 10000"),
     "wall_huge_int": ("size = 50\nwalls = [[1, 1, 5, 1" + "0" * 400 + "]]\n", "not a finite"),
     "too_many_walls": (
-        "size = 50\nwalls = [" + ", ".join(["[1, 1, 2, 2]"] * 10_001) + "]\n",
-        "10,001 walls; at most 10,000",
+        "size = 50\nwalls = [" + ",".join(["[1,1,2,2]"] * 100_001) + "]\n",
+        "100,001 walls; at most 100,000",
     ),
 }
 

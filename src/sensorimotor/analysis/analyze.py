@@ -1,6 +1,6 @@
 """``sensorimotor analyze``: a representation of a database's test split, analysed and drawn.
 
-The representation is ``raw`` (the 5 readings divided by the range: the paper's sensory space)
+The representation is ``raw`` (the readings divided by the range: the paper's sensory space)
 or a trained run folder's ``z_s`` (``evaluate.representation``; recurrent models carry their
 state from the split's start). With ``fit_data``, PCA and k-means are fitted on that database's
 test split and applied to ``data``'s (transfer, paper section V.G).

@@ -12,7 +12,10 @@ import typer
 
 from sensorimotor.cli import analysis, data, learn, report  # noqa: F401  (registers the commands)
 from sensorimotor.cli.app import INTERRUPTED, app
+from sensorimotor.cli.world import world_app
 from sensorimotor.errors import InputError
+
+app.add_typer(world_app, name="world")
 
 
 def main() -> None:

@@ -19,7 +19,7 @@ def analyze(
     run: Annotated[
         str,
         typer.Argument(
-            help="A run folder made by `sensorimotor train`, or `raw` for the 5 readings / 10."
+            help="A run folder made by `sensorimotor train`, or `raw` for the readings / range."
         ),
     ],
     data: Annotated[Path, typer.Option(help="Database whose test split is analysed (.npz).")],

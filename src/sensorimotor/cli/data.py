@@ -32,29 +32,65 @@ def generate(
     out: Annotated[
         Path | None, typer.Option(help="Output .npz (default: WORLD_sSEED.npz).")
     ] = None,
-    noise: Annotated[float, typer.Option(help="Std of Gaussian noise added to readings.")] = 0.0,
+    rays: Annotated[int, typer.Option(help="Lasers recorded (1 to 1,024); the paper's: 5.")] = 5,
+    fov: Annotated[
+        float,
+        typer.Option(help="Field of view (rad, up to 2 pi: a full turn), centred on the heading."),
+    ] = 1.2,
+    range_: Annotated[
+        float, typer.Option("--range", help="What a laser reads when no wall is nearer (units).")
+    ] = 10.0,
+    noise: Annotated[
+        float, typer.Option(help="Std of Gaussian noise on each reading (see --noise-kind).")
+    ] = 0.0,
+    noise_kind: Annotated[
+        str,
+        typer.Option(help="absolute: --noise in units; relative: a fraction of the reading."),
+    ] = "absolute",
+    dropout: Annotated[
+        float, typer.Option(help="Probability that a reading drops out (reads the range).")
+    ] = 0.0,
+    motor_noise: Annotated[
+        float,
+        typer.Option(help="Std of Gaussian noise on the executed d and r (the chosen are kept)."),
+    ] = 0.0,
 ) -> None:
-    """Record a database of the paper's random wall-avoiding behaviour in WORLD."""
+    """Record a database of the paper's random wall-avoiding behaviour in WORLD.
+
+    The behaviour always reads the paper's 5 rays (-0.6 to 0.6 rad, noiseless); --rays, --fov
+    and --range choose what is recorded, so one seed walks the same path with every layout.
+    """
     from sensorimotor.files import check_writable
+    from sensorimotor.sim.core import check_noise, spread_layout
     from sensorimotor.sim.database import check_memory, save_database
     from sensorimotor.sim.database import generate as generate_db
     from sensorimotor.sim.world import load_world
 
     if steps < 1:
         raise InputError(f"--steps must be at least 1, got {steps}")
-    if not (noise >= 0 and noise < float("inf")):
-        raise InputError(f"--noise must be a non-negative number, got {noise}")
+    layout = spread_layout(rays, fov, range_)
+    check_noise(noise, noise_kind, dropout, motor_noise)
     w = load_world(world)
     out = out or Path(f"{w.name}_s{seed}.npz")
     check_writable(out)
-    check_memory(steps)
+    check_memory(steps, 12 * (rays + 5))
     with progress_bar() as bar:
         task = bar.add_task(f"generate {w.name}", total=steps)
         db = generate_db(
-            w, steps, seed, noise_std=noise, progress=lambda n: bar.update(task, completed=n)
+            w,
+            steps,
+            seed,
+            layout,
+            noise_std=noise,
+            progress=lambda n: bar.update(task, completed=n),
+            noise_kind=noise_kind,
+            dropout=dropout,
+            motor_noise_std=motor_noise,
         )
     save_database(db, out)
-    err_console.print(f"wrote {out} ({steps:,} steps of {w.name}, seed {seed})")
+    err_console.print(
+        f"wrote {out} ({steps:,} steps of {w.name}, seed {seed}, {layout.describe()})"
+    )
 
 
 @app.command("import-bag")
@@ -151,7 +187,7 @@ def plot_perception_cmd(
     out: PlotOut = Path("perception.png"),
     svg: PlotSvg = False,
 ) -> None:
-    """Fig. 3: what the agent perceives (5 red dots) in the paper's five situations.
+    """Fig. 3: what the agent perceives (a red dot a ray) in the paper's five situations.
 
     The situations (nothing, line, corner, wall at its left, wall end) are found in the
     database by pose and readings; a wall end needs a world with inner walls (rooms1).

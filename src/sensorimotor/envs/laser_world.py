@@ -122,12 +122,24 @@ class LaserWorldEnv(gym.Env[np.ndarray, np.ndarray]):
     |---------------------|------------------------|------------|----------------------------------|
     | `world`             | `str`, `Path`, `World` | `"square"` | built-in name or TOML world file |
     | `noise`             | `float`                | `0.0`      | std of Gaussian reading noise    |
+    | `rays`              | `int`                  | `5`        | lasers, 1 to 1,024               |
+    | `fov`               | `float`                | `1.2`      | field of view (rad, <= 2 pi)     |
+    | `max_range`         | `float`                | `10.0`     | laser range (units)              |
+    | `noise_kind`        | `str`                  | `absolute` | or `relative` (x the reading)    |
+    | `dropout`           | `float`                | `0.0`      | P(a reading reads the range)     |
+    | `motor_noise`       | `float`                | `0.0`      | std of noise on executed d and r |
     | `render_mode`       | `str` or `None`        | `None`     | `"rgb_array"`: top-view image    |
     | `max_episode_steps` | `int` (to `gym.make`)  | `10000`    | truncation (`TimeLimit` wrapper) |
 
+    ``rays``, ``fov``, ``max_range``, ``noise_kind``, ``dropout`` and ``motor_noise`` are those of
+    ``sensorimotor generate`` (``sim.spread_layout``, ``sim.rollout``): the observation then has
+    ``rays`` readings (the table above is the paper's 5); a dropped reading reads the range; with
+    motor noise the executed command is the action plus Gaussian noise on ``d`` and ``r`` (drawn
+    from ``self.np_random``, then clipped as any action). ``info["paper_readings"]`` holds the
+    paper's 5 noiseless readings, what ``paper_policy`` reads to walk as ``generate`` does.
     ``gym.make("sensorimotor.envs:sensorimotor/LaserWorld-v0")`` imports the module itself.
     ``render()`` with ``render_mode="rgb_array"`` returns an ``(H, W, 3)`` ``uint8`` image: the
-    walls, the agent with its heading, and the 5 rays to the points they perceive (red dots),
+    walls, the agent with its heading, and its rays to the points they perceive (red dots),
     drawn by ``sensorimotor.sim.plots.plot_perception`` (matplotlib, imported on first render).
 
     ## Version History
@@ -142,44 +154,60 @@ class LaserWorldEnv(gym.Env[np.ndarray, np.ndarray]):
         world: str | Path | World = "square",
         noise: float = 0.0,
         render_mode: str | None = None,
+        rays: int = 5,
+        fov: float = 1.2,
+        max_range: float = sim.MAX_RANGE,
+        noise_kind: str = "absolute",
+        dropout: float = 0.0,
+        motor_noise: float = 0.0,
     ):
         self.world = world if isinstance(world, World) else load_world(world)
-        if not (isinstance(noise, int | float) and math.isfinite(noise) and noise >= 0):
-            raise InputError(f"noise must be a non-negative number, got {noise!r}")
+        sim.check_noise(noise, noise_kind, dropout, motor_noise)
+        layout = sim.spread_layout(rays, fov, max_range)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise InputError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         self.noise = float(noise)
+        self.relative = noise_kind == "relative"
+        self.dropout = float(dropout)
+        self.motor_noise = float(motor_noise)
         self.render_mode = render_mode
 
         self.segments = np.ascontiguousarray(self.world.segments)  # (S, 4) float64 walls
-        self.angles = np.asarray(sim.SENSOR_ANGLES, dtype=np.float64)  # (5,) rad from heading
-        self.max_range = sim.MAX_RANGE  # units
+        self.angles = np.asarray(layout.angles, dtype=np.float64)  # (R,) rad from heading
+        self.max_range = layout.max_range  # units
         self.ahead_range = math.hypot(self.world.width, self.world.height)  # sees any wall
         self._ahead_angle = np.zeros(1)  # (1,) the collision check's one ray, along the heading
 
         self.action_space = spaces.Box(
             low=np.array([0.0, -MAX_TURN]), high=np.array([MAX_STEP, MAX_TURN]), dtype=np.float64
         )
-        self.observation_space = spaces.Box(0.0, self.max_range, shape=(5,), dtype=np.float32)
+        self.observation_space = spaces.Box(
+            0.0, self.max_range, shape=(len(self.angles),), dtype=np.float32
+        )
 
         self.pose: tuple[float, float, float] | None = None  # (x, y, heading)
-        self._readings = np.empty(5)  # (5,) noiseless readings at self.pose
+        self._readings = np.empty(len(self.angles))  # (R,) noiseless readings at self.pose
         self._figure = None  # matplotlib Figure, made on first render
 
     def _observe(self) -> np.ndarray:
-        """Cast the 5 rays at the current pose; return the (noisy) float32 observation."""
+        """Cast the rays at the current pose; return the (noisy) float32 observation."""
         x, y, heading = self.pose
         sim.cast_rays(self.segments, x, y, heading, self.angles, self.max_range, self._readings)
         readings = self._readings
         if self.noise:
-            readings = readings + self.np_random.normal(0.0, self.noise, readings.shape)
-            readings = np.clip(readings, 0.0, self.max_range)
-        return readings.astype(np.float32)
+            extra = self.np_random.normal(0.0, self.noise, readings.shape)
+            readings = readings + (readings * extra if self.relative else extra)
+        if self.dropout:
+            readings = np.where(
+                self.np_random.random(readings.shape) < self.dropout, self.max_range, readings
+            )
+        return np.clip(readings, 0.0, self.max_range).astype(np.float32)
 
     def _info(self, collision: bool) -> dict[str, Any]:
         return {
             "pose": np.array(self.pose, dtype=np.float64),
             "readings": self._readings.copy(),
+            "paper_readings": sim.read_sensors(self.world, np.array(self.pose))[0],
             "collision": collision,
         }
 
@@ -191,6 +219,8 @@ class LaserWorldEnv(gym.Env[np.ndarray, np.ndarray]):
         action = action.reshape(2)
         if not np.isfinite(action).all():
             raise ValueError(f"action must be finite, got {action!r}")
+        if self.motor_noise:  # the executed command is not quite the one given
+            action = action + self.np_random.normal(0.0, self.motor_noise, 2)
         d = min(max(float(action[0]), 0.0), MAX_STEP)  # translation (units)
         r = float(action[1])  # rotation (rad)
         x, y, heading = self.pose

@@ -1,6 +1,6 @@
 """Prediction error of trained encoders, the two baselines, and the representation z_s.
 
-The error is the paper's L2 error (Eq. 1): per step, the squared error summed over the 5
+The error is the paper's L2 error (Eq. 1): per step, the squared error summed over the
 scaled sensors; then the mean over every predicted step of the split. Recurrent models run over
 the whole split from a zero state, carrying it, as an agent would online.
 """
@@ -19,6 +19,7 @@ from sensorimotor.errors import InputError
 from sensorimotor.files import read_json
 from sensorimotor.learn.models import ModelConfig, SensorimotorEncoder, build_model
 from sensorimotor.learn.runs import load_weights_into, torch_load
+from sensorimotor.sim.core import SensorLayout
 from sensorimotor.sim.database import Database, as_database, scale_motors, scale_sensors
 
 CHUNK = 20_000  # steps per forward pass when running a whole split (memory bound, not a result)
@@ -123,17 +124,26 @@ def load_run(run_dir: str | Path, device: str | torch.device = "cpu") -> Run:
 
 
 def check_fits(run: Run, db: Database) -> None:
-    """Refuse data the run's model cannot read (another sensor layout)."""
+    """Refuse data the run's model cannot read (another sensor layout): one line naming both."""
     trained = run.config.get("data", {}).get("sensor_layout")
     layout = db.meta.get("sensor_layout")
     if trained and layout and trained != layout:
         raise InputError(
-            f"{db.source}: sensor layout {layout} does not fit run {run.path} (trained on {trained})"
+            f"{db.source}: recorded with {db.layout.describe()}; run {run.path} was trained on "
+            f"{_describe(trained)}"
         )
     if db.sensors.shape[1] != run.model.config.n_sensors:
         raise InputError(
             f"{db.source}: {db.sensors.shape[1]} sensors, the model reads {run.model.config.n_sensors}"
         )
+
+
+def _describe(layout: dict) -> str:
+    """A run's recorded ``sensor_layout`` as ``SensorLayout.describe`` puts it."""
+    try:
+        return SensorLayout(tuple(layout["angles"]), float(layout["max_range"])).describe()
+    except (KeyError, TypeError, ValueError):
+        return str(layout)
 
 
 def representation(

@@ -315,7 +315,7 @@ def run_meta(
     """What a run folder's ``config.json`` records: model (default: the paper's sizes),
     training config, data, version."""
     return {
-        "model": (model or ModelConfig(kind=config.model)).to_dict(),
+        "model": (model or ModelConfig(kind=config.model, n_sensors=db.sensors.shape[1])).to_dict(),
         "train": {k: v for k, v in asdict(config).items() if k != "device"},
         "data": {
             "path": str(data),

@@ -170,6 +170,13 @@ def train_runs(
     dbs = [load_database(f) for f in files]
     for db in dbs:
         check_trainable(db, config)
+        if db.layout != dbs[0].layout:
+            raise InputError(
+                f"{db.source}: sensor layout ({db.layout.describe()}) differs from "
+                f"{dbs[0].source}'s ({dbs[0].layout.describe()}): one stack reads one layout"
+            )
+    # the model reads as many sensors as the database records
+    model_config = replace(model_config, n_sensors=dbs[0].sensors.shape[1])
     if len({len(db.take("train")) for db in dbs}) > 1:
         raise ValueError("databases trained together must have train splits of one length")
     with contextlib.ExitStack() as locks:

@@ -35,9 +35,10 @@ SITUATIONS = {
 }
 
 
-def _symmetric_score(sensors: np.ndarray, max_range: float) -> np.ndarray:
-    """(N,) lower for a wall straight ahead at mid range: outer rays alike, middle at range/2."""
-    return np.abs(sensors[:, 0] - sensors[:, -1]) + np.abs(sensors[:, 2] - max_range / 2)
+def _symmetric_score(sensors: np.ndarray, max_range: float, middle: int = 2) -> np.ndarray:
+    """(N,) lower for a wall straight ahead at mid range: outer rays alike, the ray ``middle``
+    (the one nearest straight ahead) at range/2."""
+    return np.abs(sensors[:, 0] - sensors[:, -1]) + np.abs(sensors[:, middle] - max_range / 2)
 
 
 def _bearing_score(
@@ -78,7 +79,7 @@ def pick_situations(db: Database, max_rows: int = 200_000) -> dict[str, int]:
     database works too), among the first ``max_rows`` rows; ``R`` is the range (10):
 
     - ``nothing``: every reading is R; the candidate farthest from every wall.
-    - ``line``: all 5 rays hit the same wall segment (``sim.hit_walls``).
+    - ``line``: every ray hits the same wall segment (``sim.hit_walls``).
     - ``corner``: ``events.corner_in_view`` and every ray hits a wall, at least two walls hit.
     - ``wall at its left``: the two left rays hit a wall, the middle and the two right rays read
       R, no corner is in view and no free wall end is within R.
@@ -96,12 +97,14 @@ def pick_situations(db: Database, max_rows: int = 200_000) -> dict[str, int]:
     max_range = layout.max_range
     n = min(len(db), max_rows)
     poses = np.asarray(db.poses[:n], dtype=np.float64)  # (N, 3)
-    true = read_sensors(world, poses, layout)  # (N, 5) noiseless
+    true = read_sensors(world, poses, layout)  # (N, R) noiseless
     clearance = point_segment_distance(world.segments, poses[:, 0], poses[:, 1]).min(axis=1)
     nothing = events.nothing_in_view(true, max_range)
     all_hit = np.all(true < max_range * (1.0 - 1e-6), axis=1)  # (N,)
-    left_hit = (true[:, 3] < max_range) & (true[:, 4] < max_range)  # (N,) index 4 leftmost
-    right_free = np.all(true[:, :3] >= max_range, axis=1)  # the middle ray sees nothing too
+    angles = np.asarray(layout.angles)  # (R,) counter-clockwise: positive to the left
+    middle, leftmost = int(np.argmin(np.abs(angles))), int(np.argmax(angles))
+    left_hit = np.all(true[:, angles > 0] < max_range, axis=1)  # (N,) every ray to the left
+    right_free = np.all(true[:, angles <= 0] >= max_range, axis=1)  # straight ahead too
 
     ends = events.free_wall_ends(world)  # (E, 2)
     found: dict[str, int] = {}
@@ -115,9 +118,9 @@ def pick_situations(db: Database, max_rows: int = 200_000) -> dict[str, int]:
     best("nothing", rows, -clearance[rows])
 
     rows = np.flatnonzero(all_hit)
-    walls = hit_walls(world, poses[rows], layout)  # (M, 5)
+    walls = hit_walls(world, poses[rows], layout)  # (M, R)
     same = np.all(walls == walls[:, :1], axis=1)
-    best("line", rows[same], _symmetric_score(true[rows[same]], max_range))
+    best("line", rows[same], _symmetric_score(true[rows[same]], max_range, middle))
 
     corner = events.corner_in_view(world, poses[rows], layout) & ~same
     corners = events.corner_points(world)  # (C, 2)
@@ -127,12 +130,12 @@ def pick_situations(db: Database, max_rows: int = 200_000) -> dict[str, int]:
     clean = ~events.corner_in_view(world, poses[rows], layout) & ~_near(
         poses[rows], ends, max_range
     )
-    best("wall at its left", rows[clean], np.abs(true[rows[clean], 4] - max_range / 2))
+    best("wall at its left", rows[clean], np.abs(true[rows[clean], leftmost] - max_range / 2))
 
     if len(ends):
         rows = np.flatnonzero(events.wall_end_in_view(world, poses, layout))
         end_walls = point_segment_distance(world.segments, ends[:, 0], ends[:, 1]).argmin(axis=1)
-        hit = hit_walls(world, poses[rows], layout)  # (M, 5) the wall each ray hits
+        hit = hit_walls(world, poses[rows], layout)  # (M, R) the wall each ray hits
         on = hit[:, :, None] == end_walls[None, None, :]  # (M, 5, E)
         straddled = on.any(axis=1) & ~on.all(axis=1)  # (M, E) some rays on the wall, some past
         score = _bearing_score(world, poses[rows], ends, layout, straddled)

@@ -3,7 +3,9 @@
 Every kernel here is a pure array function compiled with numba; randomness is drawn outside the
 kernels (uniforms in bulk from a ``numpy.random.Generator``) so one seed gives the same bytes
 whatever the chunking. The database generator, the Gymnasium environment and the figures all
-call these kernels; there is no other ray caster in the package.
+call these kernels; there is no other ray caster in the package. Big worlds are cast through
+the walls' grid (``sim.grid``), small ones with the all-walls loop (``_cast_many``), behind one
+door (``_cast``, ``grid.for_rays``): the same arithmetic, the same bits.
 """
 
 from __future__ import annotations
@@ -15,11 +17,14 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from sensorimotor.errors import InputError
+from sensorimotor.sim.grid import WallGrid, cast_grid, for_rays
 from sensorimotor.sim.world import START_CLEARANCE, World, free_start_cells, point_segment_distance
 
 SENSOR_ANGLES = np.array([-0.6, -0.3, 0.0, 0.3, 0.6])  # rad from the heading; index 0 rightmost
 MAX_SEED = 2**32 - 1  # the largest seed that every seeded library here accepts
 MAX_RANGE = 10.0  # units; a ray that hits nothing nearer reads exactly this
+MAX_RAYS = 1024  # rays a layout may have
 TURN_THRESHOLD = 1.0  # units; the behaviour turns around when a reading is below this
 EPS = 1e-12
 
@@ -35,6 +40,43 @@ class SensorLayout:
 
     def to_dict(self) -> dict:
         return {"angles": list(self.angles), "max_range": self.max_range}
+
+    def describe(self) -> str:
+        """One short phrase: "5 rays over [-0.6, 0.6] rad, range 10"."""
+        n = len(self.angles)
+        span = (
+            f"at {self.angles[0]:g} rad"
+            if n == 1
+            else (f"over [{min(self.angles):g}, {max(self.angles):g}] rad")
+        )
+        return f"{n} ray{'s' if n != 1 else ''} {span}, range {self.max_range:g}"
+
+
+def spread_layout(rays: int = 5, fov: float = 1.2, max_range: float = MAX_RANGE) -> SensorLayout:
+    """``rays`` lasers evenly spread over a field of view of ``fov`` radians centred on the
+    heading, seeing ``max_range`` units; InputError naming the option that is out of range.
+
+    Ray i of n points at ``fov (i / (n - 1) - 1/2)`` (both edges of the fan; one ray looks
+    straight ahead), or at ``-pi + 2 pi i / n`` for a full turn (``fov = 2 pi``: the edges are
+    the same direction, counted once). Angles are rounded to 12 decimals so that the defaults
+    give the paper's layout to the bit (-0.6, -0.3, 0, 0.3, 0.6).
+    """
+    if isinstance(rays, bool) or not isinstance(rays, int) or not 1 <= rays <= MAX_RAYS:
+        raise InputError(f"--rays must be an integer from 1 to {MAX_RAYS:,}, got {rays!r}")
+    full = 2 * math.pi
+    if not (math.isfinite(fov) and 0 <= fov <= full + 1e-9):
+        raise InputError(f"--fov must be from 0 to 2 pi ({full:.6f}) radians, got {fov!r}")
+    if rays > 1 and fov <= 0:
+        raise InputError(f"--fov must be positive for {rays} rays, got {fov!r}")
+    if not (math.isfinite(max_range) and max_range > 0):
+        raise InputError(f"--range must be a positive number, got {max_range!r}")
+    if rays == 1:
+        angles = [0.0]
+    elif fov >= full - 1e-9:
+        angles = [-math.pi + full * i / rays for i in range(rays)]
+    else:
+        angles = [fov * (i / (rays - 1) - 0.5) for i in range(rays)]
+    return SensorLayout(tuple(round(a, 12) + 0.0 for a in angles), float(max_range))
 
 
 DEFAULT_LAYOUT = SensorLayout()
@@ -128,21 +170,66 @@ def apply_motor(x, y, heading, d, r):
 
 
 @numba.njit(cache=True)
-def _rollout(segments, angles, max_range, x, y, heading, uniforms, noise, sensors, motors, poses):
+def _cast(segments, dims, start, items, stamp, ray_id, x, y, dx, dy, max_range, out):
+    """The one door to the ray caster: the walls' grid (``sim.grid``) when the world has one
+    (``dims[1] > 0``), else the all-walls loop; the same readings either way. Returns the next
+    ``ray_id`` (see ``grid.cast_grid``)."""
+    if dims[1] == 0.0:
+        _cast_many(segments, x, y, dx, dy, max_range, out)
+        return ray_id
+    return cast_grid(segments, dims, start, items, stamp, ray_id, x, y, dx, dy, max_range, out)
+
+
+@numba.njit(cache=True)
+def _rollout(
+    segments,
+    dims,
+    start,
+    items,
+    angles,
+    max_range,
+    paper_rays,
+    x,
+    y,
+    heading,
+    uniforms,
+    noise,
+    relative,
+    dropped,
+    motor_noise,
+    sensors,
+    motors,
+    poses,
+):
     """Run ``len(uniforms)`` steps of the behaviour from pose (x, y, heading), filling the outputs.
 
     Row t: ``poses[t]`` is where ``sensors[t]`` is read; ``motors[t]`` is chosen from it and
-    leads to row t + 1. The behaviour sees the noiseless readings (a reflex the noise does not
-    fool, so the agent never crosses a wall); ``noise[t]`` (T, R) is added to what is recorded,
-    and an empty ``noise`` (0, R) means none. Returns the pose after the last step.
+    leads to row t + 1. The behaviour reads the paper's five rays, noiseless (a reflex the
+    noise does not fool, so the agent never crosses a wall): the layout's own readings when
+    ``paper_rays`` (the layout is the paper's), else five hidden rays cast for it alone.
+    What is recorded: ``noise[t]`` (T, R) added to the reading (times the reading when
+    ``relative``); then the range where ``dropped[t]`` (T, R); then clipped to [0, range].
+    ``motor_noise[t]`` (T, 2) is added to the command executed, not to the one recorded; the
+    translation stays within [0, 0.99 x the distance straight ahead], so the noise never
+    carries the agent through a wall. An empty array (0, .) means none of that kind.
+    Returns the pose after the last step.
     """
     n_rays = angles.shape[0]
     ca = np.cos(angles)
     sa = np.sin(angles)
+    pa = np.cos(SENSOR_ANGLES), np.sin(SENSOR_ANGLES)
     dx = np.empty(n_rays)
     dy = np.empty(n_rays)
     readings = np.empty(n_rays)
+    pdx = np.empty(5)
+    pdy = np.empty(5)
+    hidden = np.empty(5)
+    stamp = np.zeros(segments.shape[0], dtype=np.int64)
+    ray_id = 1
     noisy_run = noise.shape[0] > 0
+    drop_run = dropped.shape[0] > 0
+    motor_run = motor_noise.shape[0] > 0
+    all_walls = dims[1] == 0.0
     for t in range(uniforms.shape[0]):
         poses[t, 0] = x
         poses[t, 1] = y
@@ -153,15 +240,39 @@ def _rollout(segments, angles, max_range, x, y, heading, uniforms, noise, sensor
             # direction of heading + angle[i], by the angle-sum identities (one sincos a step)
             dx[i] = ch * ca[i] - sh * sa[i]
             dy[i] = sh * ca[i] + ch * sa[i]
-        _cast_many(segments, x, y, dx, dy, max_range, readings)
-        lowest = max_range
+        if all_walls:  # the paper's worlds: the all-walls loop, called here to be inlined
+            _cast_many(segments, x, y, dx, dy, max_range, readings)
+        else:
+            ray_id = cast_grid(
+                segments, dims, start, items, stamp, ray_id, x, y, dx, dy, max_range, readings
+            )
+        if not paper_rays:
+            for i in range(5):
+                pdx[i] = ch * pa[0][i] - sh * pa[1][i]
+                pdy[i] = sh * pa[0][i] + ch * pa[1][i]
+            ray_id = _cast(
+                segments, dims, start, items, stamp, ray_id, x, y, pdx, pdy, MAX_RANGE, hidden
+            )
+        lowest = max_range if paper_rays else MAX_RANGE
+        if not paper_rays:
+            for i in range(5):
+                lowest = min(lowest, hidden[i])
         for i in range(n_rays):
-            lowest = min(lowest, readings[i])
-            noisy = readings[i] + noise[t, i] if noisy_run else readings[i]
-            sensors[t, i] = min(max(noisy, 0.0), max_range)
+            value = readings[i]
+            if paper_rays:  # one loop, as before layouts of any size
+                lowest = min(lowest, value)
+            if noisy_run:
+                value = value + (value * noise[t, i] if relative else noise[t, i])
+            if drop_run and dropped[t, i]:
+                value = max_range
+            sensors[t, i] = min(max(value, 0.0), max_range)
         d, r = behaviour(lowest, uniforms[t, 0], uniforms[t, 1])
         motors[t, 0] = d
         motors[t, 1] = r
+        if motor_run:
+            ahead = readings[2] if paper_rays else hidden[2]  # the paper's ray straight ahead
+            d = min(max(d + motor_noise[t, 0], 0.0), 0.99 * ahead)
+            r = r + motor_noise[t, 1]
         # apply_motor(x, y, heading, d, r), reusing this step's cos and sin of the heading
         x = x + d * ch
         y = y + d * sh
@@ -191,9 +302,27 @@ def sample_start(world: World, rng: np.random.Generator) -> tuple[float, float, 
 class Rollout:
     """A recorded run: row t holds s_t, the command m_t chosen from it, and the pose of s_t."""
 
-    sensors: np.ndarray  # (T, 5) float64 readings
-    motors: np.ndarray  # (T, 2) float64 (d, r)
+    sensors: np.ndarray  # (T, R) float64 readings
+    motors: np.ndarray  # (T, 2) float64 (d, r) as chosen (before any motor noise)
     poses: np.ndarray  # (T, 3) float64 (x, y, heading)
+
+
+NOISE_KINDS = ("absolute", "relative")
+
+
+def check_noise(
+    noise_std: float = 0.0, noise_kind: str = "absolute", dropout: float = 0.0, motor: float = 0.0
+) -> None:
+    """InputError naming the ``generate`` option out of range: a negative or infinite standard
+    deviation, a dropout outside [0, 1], an unknown noise kind."""
+    for name, value in (("--noise", noise_std), ("--motor-noise", motor)):
+        if not (isinstance(value, int | float) and 0 <= value < math.inf):
+            raise InputError(f"{name} must be a non-negative number, got {value!r}")
+    if not (isinstance(dropout, int | float) and 0 <= dropout <= 1):
+        raise InputError(f"--dropout must be a probability from 0 to 1, got {dropout!r}")
+    if noise_kind not in NOISE_KINDS:
+        kinds = ", ".join(NOISE_KINDS)
+        raise InputError(f"--noise-kind must be one of {kinds}, got {noise_kind!r}")
 
 
 def rollout(
@@ -204,50 +333,72 @@ def rollout(
     noise_std: float = 0.0,
     chunk: int = 200_000,
     progress: Callable[[int], None] | None = None,
+    noise_kind: str = "absolute",
+    dropout: float = 0.0,
+    motor_noise_std: float = 0.0,
+    grid: WallGrid | None = None,
 ) -> Rollout:
     """Run the paper's behaviour for ``steps`` steps from a random start; float64 arrays.
 
     The generator draws the start pose, then two uniforms per step, chunk after chunk; the
-    noise (a normal per ray and step) comes from a child generator spawned from it, so its
-    draws never interleave with the uniforms: the bytes depend on the seed alone, not on
-    ``chunk``.
+    noises come from three child generators spawned from it (reading noise, dropouts, motor
+    noise, in that order, and only when one is asked for), so their draws never interleave
+    with the uniforms: the bytes depend on the seed alone, not on ``chunk``. The behaviour
+    reads the paper's five rays whatever ``layout`` records, so one seed walks the same path
+    with every layout (motor noise aside). Noise: ``noise_std`` is the standard deviation of a
+    normal added to each reading (``noise_kind="absolute"``, units) or to it as a fraction
+    (``"relative"``); a reading drops out (reads the range) with probability ``dropout``; the
+    executed command is the recorded one plus a normal of ``motor_noise_std`` on ``d`` and on
+    ``r`` (see ``_rollout``). ``grid`` overrides the choice of ``grid.for_rays`` (the
+    world's grid, or none where the all-walls loop is faster): the same bits either way.
     ``progress(n)`` is called after each chunk with the number of steps done.
     """
     if steps < 1:
         raise ValueError(f"steps must be at least 1, got {steps}")
-    if 0.0 not in layout.angles:
-        # the behaviour moves on (d < 1) only when every reading is >= 1: without a ray
-        # straight ahead a wall just in front would go unseen and be crossed
-        raise ValueError(f"the behaviour needs a ray straight ahead (angle 0), got {layout.angles}")
+    check_noise(noise_std, noise_kind, dropout, motor_noise_std)
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     segments = np.ascontiguousarray(world.segments)
+    if grid is None:
+        grid = for_rays(world.grid, len(segments), len(layout.angles))
+    dims, start_, items = grid.arrays()
     angles = np.asarray(layout.angles, dtype=np.float64)
-    sensors = np.empty((steps, len(angles)))
+    paper_rays = layout.angles == DEFAULT_LAYOUT.angles and layout.max_range >= TURN_THRESHOLD
+    n = len(angles)
+    sensors = np.empty((steps, n))
     motors = np.empty((steps, 2))
     poses = np.empty((steps, 3))
     x, y, heading = sample_start(world, rng)
-    noise_rng = rng.spawn(1)[0] if noise_std else None
-    no_noise = np.zeros((0, len(angles)))
-    for start in range(0, steps, chunk):
-        stop = min(start + chunk, steps)
-        uniforms = rng.random((stop - start, 2))
-        noise = (
-            noise_rng.normal(0.0, noise_std, (stop - start, len(angles)))
-            if noise_rng is not None
-            else no_noise
+    children = rng.spawn(3) if (noise_std or dropout or motor_noise_std) else None
+    for begin in range(0, steps, chunk):
+        stop = min(begin + chunk, steps)
+        c = stop - begin
+        uniforms = rng.random((c, 2))
+        noise = children[0].normal(0.0, noise_std, (c, n)) if noise_std else np.zeros((0, n))
+        dropped = children[1].random((c, n)) < dropout if dropout else np.zeros((0, n), bool)
+        motor = (
+            children[2].normal(0.0, motor_noise_std, (c, 2))
+            if motor_noise_std
+            else np.zeros((0, 2))
         )
         x, y, heading = _rollout(
             segments,
+            dims,
+            start_,
+            items,
             angles,
             layout.max_range,
+            paper_rays,
             x,
             y,
             heading,
             uniforms,
             noise,
-            sensors[start:stop],
-            motors[start:stop],
-            poses[start:stop],
+            noise_kind == "relative",
+            dropped,
+            motor,
+            sensors[begin:stop],
+            motors[begin:stop],
+            poses[begin:stop],
         )
         if progress is not None:
             progress(stop)
@@ -257,10 +408,12 @@ def rollout(
 def read_sensors(
     world: World, poses: np.ndarray, layout: SensorLayout = DEFAULT_LAYOUT
 ) -> np.ndarray:
-    """Noiseless readings (P, R) at each pose (P, 3): the figures' and the analysis' ray caster."""
+    """Noiseless readings (P, R) at each pose (P, 3): the figures' and the analysis' ray caster
+    (through the world's grid, as the rollout)."""
     poses = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
     return _read_many(
         np.ascontiguousarray(world.segments),
+        *for_rays(world.grid, len(world.segments), len(layout.angles)).arrays(),
         poses,
         np.asarray(layout.angles, dtype=np.float64),
         float(layout.max_range),
@@ -268,10 +421,21 @@ def read_sensors(
 
 
 @numba.njit(cache=True)
-def _read_many(segments, poses, angles, max_range):
+def _read_many(segments, dims, start, items, poses, angles, max_range):
     out = np.empty((poses.shape[0], angles.shape[0]))
+    dx = np.empty(angles.shape[0])
+    dy = np.empty(angles.shape[0])
+    stamp = np.zeros(segments.shape[0], dtype=np.int64)
+    ray_id = 1
     for p in range(poses.shape[0]):
-        cast_rays(segments, poses[p, 0], poses[p, 1], poses[p, 2], angles, max_range, out[p])
+        for i in range(angles.shape[0]):  # as cast_rays: one cos and sin of the sum per ray
+            a = poses[p, 2] + angles[i]
+            dx[i] = math.cos(a)
+            dy[i] = math.sin(a)
+        ray_id = _cast(
+            segments, dims, start, items, stamp, ray_id, poses[p, 0], poses[p, 1], dx, dy,
+            max_range, out[p],
+        )  # fmt: skip
     return out
 
 
@@ -291,6 +455,7 @@ def hit_walls(
     poses = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
     angles = np.asarray(layout.angles, dtype=np.float64)
     segments = world.segments
+    chunk = max(1, min(chunk, 2**22 // (len(angles) * len(segments))))  # (C R, S) distances
     out = np.full((len(poses), len(angles)), -1, dtype=np.int64)
     for start in range(0, len(poses), chunk):
         p = poses[start : start + chunk]  # (C, 3)

@@ -1,7 +1,8 @@
 """Sensorimotor databases: the ``.npz`` files, their checks, splits and scaling.
 
-A database holds ``sensors`` (N, 5), ``motors`` (N, 2) and ``poses`` (N, 3), all float32, and
-``meta``, a JSON string (world, seed, steps, sensor layout, package version). Row t holds s_t,
+A database holds ``sensors`` (N, R), ``motors`` (N, 2) and ``poses`` (N, 3), all float32, and
+``meta``, a JSON string (world, seed, steps, sensor layout, noise, package version). R is the
+layout's number of rays (``meta.sensor_layout``; the paper's 5 when the meta has none). Row t holds s_t,
 the command m_t chosen after seeing s_t (it leads to s_{t+1}) and the pose where s_t was read.
 Splits are by position: the first 80 % train, the next 10 % validation, the last 10 % test.
 
@@ -26,7 +27,7 @@ import numpy as np
 
 from sensorimotor.errors import InputError
 from sensorimotor.files import atomic_path, check_input
-from sensorimotor.sim.core import DEFAULT_LAYOUT, SensorLayout, read_sensors, rollout
+from sensorimotor.sim.core import DEFAULT_LAYOUT, MAX_RAYS, SensorLayout, read_sensors, rollout
 from sensorimotor.sim.world import (
     BUILTIN_WORLDS,
     NAME_PATTERN,
@@ -37,14 +38,14 @@ from sensorimotor.sim.world import (
 from sensorimotor.version import __version__
 
 SPLITS = {"train": (0.0, 0.8), "val": (0.8, 0.9), "test": (0.9, 1.0)}
-ARRAYS = {"sensors": 5, "motors": 2, "poses": 3}  # name -> columns
+ARRAYS = {"sensors": None, "motors": 2, "poses": 3}  # name -> columns (None: the layout's rays)
 
 
 @dataclass(frozen=True, eq=False)
 class Database:
     """A loaded database: float32 arrays plus the ``meta`` that says where they came from."""
 
-    sensors: np.ndarray = field(repr=False)  # (N, 5) float32 readings
+    sensors: np.ndarray = field(repr=False)  # (N, R) float32 readings, R rays
     motors: np.ndarray = field(repr=False)  # (N, 2) float32 (d, r)
     poses: np.ndarray = field(repr=False)  # (N, 3) float32 (x, y, heading) where s_t is read
     meta: dict
@@ -155,17 +156,28 @@ def generate(
     layout: SensorLayout = DEFAULT_LAYOUT,
     noise_std: float = 0.0,
     progress: Callable[[int], None] | None = None,
+    noise_kind: str = "absolute",
+    dropout: float = 0.0,
+    motor_noise_std: float = 0.0,
 ) -> Database:
     """Roll the paper's behaviour out for ``steps`` steps and package it as a Database.
 
-    ``layout`` may point the lasers elsewhere and see farther or nearer, but a database holds
-    the 5 readings the encoders read, and one ray must look straight ahead (``sim.rollout``)."""
-    if len(layout.angles) != ARRAYS["sensors"]:
-        raise ValueError(
-            f"a database holds {ARRAYS['sensors']} readings a step (what the encoders read): "
-            f"the layout has {len(layout.angles)} angles"
-        )
-    run = rollout(world, steps, seed, layout, noise_std, progress=progress)
+    ``layout`` says what is recorded (any number of rays, any field of view and range); the
+    behaviour reads the paper's five rays whatever it is (``sim.rollout``), and the noises are
+    ``sim.rollout``'s. The meta records the layout and every noise; the keys of the noises
+    the paper has not (``noise_kind``, ``dropout``, ``motor_noise_std``) appear only when one
+    of them is used, so that a paper database keeps its bytes."""
+    run = rollout(
+        world,
+        steps,
+        seed,
+        layout,
+        noise_std,
+        progress=progress,
+        noise_kind=noise_kind,
+        dropout=dropout,
+        motor_noise_std=motor_noise_std,
+    )
     meta = {
         "format": "sensorimotor-database/1",
         "world": world.to_dict(),
@@ -177,6 +189,12 @@ def generate(
         "else (U(0, 1), U(-pi/6, pi/6))",
         "version": __version__,
     }
+    if noise_kind != "absolute" or dropout or motor_noise_std:
+        meta["noise_kind"] = noise_kind
+        meta["dropout"] = float(dropout)
+        meta["motor_noise_std"] = float(motor_noise_std)
+    if layout.angles != DEFAULT_LAYOUT.angles or layout.max_range < 1:
+        meta["behaviour"] += " on the paper's 5 rays (-0.6 to 0.6 rad), cast apart from the layout"
     return Database(
         run.sensors.astype(np.float32),
         run.motors.astype(np.float32),
@@ -188,8 +206,8 @@ def generate(
 def check_memory(steps: int, bytes_per_step: int = 120) -> None:
     """Refuse early a database too big for this machine's memory (InputError, not a traceback).
 
-    ``generate`` holds the float64 rollout (10 numbers, 80 bytes a step) and its float32 copy
-    (40 bytes a step) at once.
+    ``generate`` holds the float64 rollout (R + 5 numbers, 8 (R + 5) bytes a step for R rays)
+    and its float32 copy (4 (R + 5) bytes a step) at once: 120 bytes for the paper's 5 rays.
     """
     try:
         have = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
@@ -245,8 +263,11 @@ def load_database(path: str | Path) -> Database:
     n = None
     for name, cols in ARRAYS.items():
         a = arrays[name]
+        if cols is None and a.ndim == 2 and 1 <= a.shape[1] <= MAX_RAYS:
+            cols = a.shape[1]  # the layout's rays, checked against meta.sensor_layout below
         if a.ndim != 2 or a.shape[1] != cols:
-            raise InputError(f"{path}: {name!r} must have shape (N, {cols}), got {a.shape}")
+            want = cols if cols is not None else f"R, 1 <= R <= {MAX_RAYS}"
+            raise InputError(f"{path}: {name!r} must have shape (N, {want}), got {a.shape}")
         if n is not None and len(a) != n:
             raise InputError(f"{path}: {name!r} has {len(a)} rows, expected {n}")
         n = len(a)
@@ -349,9 +370,14 @@ def _check_readings_match_world(db: Database, world: World) -> None:
 
 
 def _check_layout(meta: dict, n_sensors: int, path: Path) -> None:
-    """The sensor layout in ``meta`` (optional) must describe the sensors array."""
+    """The sensor layout in ``meta`` (optional: the paper's 5 rays) must describe the sensors."""
     layout = meta.get("sensor_layout")
     if layout is None:
+        if n_sensors != len(DEFAULT_LAYOUT.angles):
+            raise InputError(
+                f"{path}: {n_sensors} sensors but no meta.sensor_layout (only the paper's "
+                f"{len(DEFAULT_LAYOUT.angles)} rays may go without one)"
+            )
         return
     angles = layout.get("angles") if isinstance(layout, dict) else None
     max_range = layout.get("max_range") if isinstance(layout, dict) else None

@@ -71,22 +71,31 @@ def _inner_ends(world: World) -> tuple[np.ndarray, np.ndarray]:
     return np.array(ends, dtype=np.float64).reshape(-1, 2), np.array(touches, dtype=bool)
 
 
-def _crossings(segments: np.ndarray) -> list[tuple[float, float]]:
-    """Points where the interiors of two segments cross (end points excluded)."""
+def _crossings(segments: np.ndarray, chunk: int = 256) -> list[tuple[float, float]]:
+    """Points where the interiors of two segments cross (end points excluded), pair (i, j),
+    i < j, in order; worked on ``chunk`` rows i at a time against every j (numpy)."""
     out = []
-    for i in range(len(segments)):
-        for j in range(i + 1, len(segments)):
-            ax, ay, bx, by = segments[i]
-            cx, cy, dx, dy = segments[j]
-            ex, ey, fx, fy = bx - ax, by - ay, dx - cx, dy - cy
-            denom = ex * fy - ey * fx
-            if abs(denom) < 1e-12:
-                continue
-            s = ((cx - ax) * fy - (cy - ay) * fx) / denom  # along segment i
-            u = ((cx - ax) * ey - (cy - ay) * ex) / denom  # along segment j
-            eps = 1e-9
-            if eps < s < 1 - eps and eps < u < 1 - eps:
-                out.append((ax + s * ex, ay + s * ey))
+    ax, ay, bx, by = (segments[:, k] for k in range(4))
+    ex, ey = bx - ax, by - ay
+    n = len(segments)
+    eps = 1e-9
+    for lo in range(0, n, chunk):
+        i = np.arange(lo, min(lo + chunk, n))[:, None]  # (C, 1)
+        j = np.arange(n)[None, :]  # (1, S)
+        denom = ex[i] * ey[j] - ey[i] * ex[j]  # (C, S)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = ((ax[j] - ax[i]) * ey[j] - (ay[j] - ay[i]) * ex[j]) / denom  # along segment i
+            u = ((ax[j] - ax[i]) * ey[i] - (ay[j] - ay[i]) * ex[i]) / denom  # along segment j
+        ok = (
+            (j > i)
+            & (np.abs(denom) >= 1e-12)
+            & (eps < s)
+            & (s < 1 - eps)
+            & (eps < u)
+            & (u < 1 - eps)
+        )
+        for r, c in zip(*np.nonzero(ok), strict=True):
+            out.append((ax[lo + r] + s[r, c] * ex[lo + r], ay[lo + r] + s[r, c] * ey[lo + r]))
     return out
 
 
@@ -115,7 +124,8 @@ def points_in_view(
 ) -> np.ndarray:
     """(N, P) bool: point p is inside pose n's sensor fan, within range, with a clear line of sight.
 
-    The fan is ``[heading + min(angles), heading + max(angles)]``. Candidates (in the fan, at
+    The fan is ``[heading + min(angles), heading + max(angles)]``, or every direction for a
+    layout spread over a full turn (its gap behind no wider than the gap between its rays). Candidates (in the fan, at
     distance ``0 < r <= max_range``) get one ray each, cast by ``sim.read_sensors`` toward the
     point; the point is visible when that ray's first hit is at ``>= r - SIGHT_TOL``.
     Cost: O(N P) numpy (in chunks of CHUNK poses) plus one numba ray per candidate; 100k poses
@@ -128,6 +138,8 @@ def points_in_view(
     if len(points) == 0:
         return visible
     layout = SensorLayout(angles=(0.0,), max_range=max_range + 1.0)  # one ray, past the point
+    spread = angles.max() - angles.min()
+    full_turn = len(angles) > 1 and 2 * np.pi - spread <= spread / (len(angles) - 1) + 1e-9
     for start in range(0, len(poses), CHUNK):
         p = poses[start : start + CHUNK]  # (C, 3)
         dx = points[None, :, 0] - p[:, 0, None]  # (C, P)
@@ -136,6 +148,7 @@ def points_in_view(
         bearing = np.arctan2(dy, dx)  # (C, P) absolute direction of the point
         rel = np.remainder(bearing - p[:, 2, None] + np.pi, 2 * np.pi) - np.pi  # (C, P)
         cand = (rel >= angles.min() - 1e-12) & (rel <= angles.max() + 1e-12)
+        cand |= full_turn  # the fan closes: the gap behind is no wider than between its rays
         cand &= (dist > 0) & (dist <= max_range)
         rows, cols = np.nonzero(cand)  # (K,) each
         if rows.size:
@@ -147,20 +160,17 @@ def points_in_view(
 
 def _wall_directions(world: World, point: np.ndarray) -> np.ndarray:
     """Sorted angles (K,) in [-pi, pi) of the walls leaving ``point``, one per wall side."""
-    dirs = []
-    for ax, ay, bx, by in world.segments:
-        ex, ey = bx - ax, by - ay
-        length2 = ex * ex + ey * ey
-        u = ((point[0] - ax) * ex + (point[1] - ay) * ey) / length2
-        u_c = min(max(u, 0.0), 1.0)
-        if math.hypot(ax + u_c * ex - point[0], ay + u_c * ey - point[1]) > TOUCH_TOL:
-            continue
-        length = math.sqrt(length2)
-        if u * length > TOUCH_TOL:  # the wall runs back toward a
-            dirs.append(math.atan2(-ey, -ex))
-        if (1.0 - u) * length > TOUCH_TOL:  # the wall runs on toward b
-            dirs.append(math.atan2(ey, ex))
-    return np.sort(np.remainder(np.array(dirs) + np.pi, 2 * np.pi) - np.pi)
+    ax, ay, bx, by = (world.segments[:, k] for k in range(4))
+    ex, ey = bx - ax, by - ay
+    length2 = ex * ex + ey * ey
+    u = ((point[0] - ax) * ex + (point[1] - ay) * ey) / length2
+    u_c = np.minimum(np.maximum(u, 0.0), 1.0)
+    near = np.hypot(ax + u_c * ex - point[0], ay + u_c * ey - point[1]) <= TOUCH_TOL
+    length = np.sqrt(length2)
+    back = near & (u * length > TOUCH_TOL)  # the wall runs back toward a
+    on = near & ((1.0 - u) * length > TOUCH_TOL)  # the wall runs on toward b
+    dirs = np.concatenate([np.arctan2(-ey[back], -ex[back]), np.arctan2(ey[on], ex[on])])
+    return np.sort(np.remainder(dirs + np.pi, 2 * np.pi) - np.pi)
 
 
 def _concave_side(world: World, poses: np.ndarray, corners: np.ndarray) -> np.ndarray:

@@ -9,7 +9,7 @@ Simulator figures (paper section IV):
 
 - ``plot_world``: Fig. 1, the walls of a world.
 - ``plot_trajectory``: Fig. 2, the path of the agent over the walls (10,000 steps in the paper).
-- ``plot_perception``: Fig. 3, the agent, its heading and the 5 readings projected in top view
+- ``plot_perception``: Fig. 3, the agent, its heading and its readings projected in top view
   as red dots.
 """
 

@@ -23,11 +23,12 @@ import numpy as np
 
 from sensorimotor.errors import InputError
 from sensorimotor.files import MAX_TEXT_BYTES, check_input, check_nesting
+from sensorimotor.sim.grid import WallGrid, build_grid
 
 BUILTIN_WORLDS = ("square", "rooms1", "rooms2")
 START_CLEARANCE = 1.0  # a start position keeps at least this distance to every wall (units)
 MAX_SIZE = 10_000.0  # units a side: beyond it a world is a typo (the paper's are 50)
-MAX_WALLS = 10_000  # every ray is tested against every wall, every step
+MAX_WALLS = 100_000  # a ray tests the walls of the grid cells it crosses (sim.grid)
 # a name names run folders: no / or .., and short enough for any file system
 NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]{0,99}")
 
@@ -58,6 +59,11 @@ class World:
         w, h = self.width, self.height
         outer = np.array([[0, 0, w, 0], [w, 0, w, h], [w, h, 0, h], [0, h, 0, 0]], dtype=np.float64)
         return np.concatenate([outer, self.walls]).astype(np.float64)
+
+    @functools.cached_property
+    def grid(self) -> WallGrid:
+        """The walls' grid index (``sim.grid``), built on first use and kept."""
+        return build_grid(self.segments, self.width, self.height)
 
     def to_dict(self) -> dict:
         """JSON-ready description: what a database's ``meta`` records of its world. A built-in
@@ -306,22 +312,25 @@ def point_segment_distance(segments: np.ndarray, x: np.ndarray, y: np.ndarray) -
 def free_start_cells(world: World, resolution: float = 0.25) -> np.ndarray:
     """(P, 2) grid points at least START_CLEARANCE from every wall: proof that a start exists.
 
-    The grid is coarsened for big worlds so that it never holds more than 400 x 400 points,
-    and measured against the walls a block of points at a time (memory stays under about
-    100 MB whatever the number of walls).
+    The grid is coarsened for big worlds so that it never holds more than 400 x 400 points.
+    Each wall rules out the points within the clearance of it, found among the points of its
+    bounding box grown by the clearance (the distance is ``point_segment_distance``'s), so the
+    cost grows with the walls' lengths, not with walls x points.
     """
     resolution = max(resolution, world.width / 400, world.height / 400)
     xs = np.arange(resolution / 2, world.width, resolution)
     ys = np.arange(resolution / 2, world.height, resolution)
+    free = np.ones((len(ys), len(xs)), dtype=bool)  # (Y, X), the meshgrid's order
+    c = START_CLEARANCE
+    for seg in world.segments:
+        i0, i1 = np.searchsorted(xs, [min(seg[0], seg[2]) - c, max(seg[0], seg[2]) + c], "left")
+        j0, j1 = np.searchsorted(ys, [min(seg[1], seg[3]) - c, max(seg[1], seg[3]) + c], "left")
+        i1 += int(i1 < len(xs) and xs[i1] == max(seg[0], seg[2]) + c)  # the bound itself counts
+        j1 += int(j1 < len(ys) and ys[j1] == max(seg[1], seg[3]) + c)
+        if i0 >= i1 or j0 >= j1:
+            continue
+        gx, gy = np.meshgrid(xs[i0:i1], ys[j0:j1])
+        d = point_segment_distance(seg[None, :], gx.ravel(), gy.ravel())[:, 0]
+        free[j0:j1, i0:i1] &= (d >= c).reshape(gx.shape)
     gx, gy = np.meshgrid(xs, ys)
-    gx, gy = gx.ravel(), gy.ravel()
-    segments = world.segments
-    block = max(1, 2_000_000 // len(segments))  # points a block: (block, S) float64 arrays
-    ok = np.concatenate(
-        [
-            point_segment_distance(segments, gx[i : i + block], gy[i : i + block]).min(axis=1)
-            >= START_CLEARANCE
-            for i in range(0, len(gx), block)
-        ]
-    )
-    return np.stack([gx[ok], gy[ok]], axis=1)
+    return np.stack([gx[free], gy[free]], axis=1)

@@ -1,0 +1,42 @@
+"""How much of Table I is the layout? The published Square models (docs/results/runs) tested on
+families of Rooms1 and Rooms2 layouts that fit the paper's sentences (``report.layouts``).
+
+Run by hand: ``python docs/layout_sensitivity.py [--layouts 10] [--data-seeds 2] [--steps
+100000] [--out docs/results]``; writes ``layout_sensitivity.json`` and ``.md`` into --out.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from sensorimotor.files import write_text_atomic
+from sensorimotor.report.layouts import layout_sensitivity, sensitivity_markdown
+
+ROOT = Path(__file__).resolve().parent
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=Path, default=ROOT / "results" / "runs")
+    parser.add_argument("--layouts", type=int, default=10, help="layouts per family")
+    parser.add_argument("--data-seeds", type=int, default=2, help="test databases per layout")
+    parser.add_argument("--steps", type=int, default=100_000, help="steps per test database")
+    parser.add_argument("--out", type=Path, default=ROOT / "results")
+    args = parser.parse_args()
+    runs = sorted(args.runs.glob("square__*__s*"))
+    result = layout_sensitivity(
+        runs, layouts=args.layouts, data_seeds=range(args.data_seeds), steps=args.steps,
+        log=lambda line: print(line, file=sys.stderr, flush=True),
+    )  # fmt: skip
+    result["command"] = " ".join(sys.argv)
+    result["runs"] = [str(r) for r in runs]
+    write_text_atomic(args.out / "layout_sensitivity.json", json.dumps(result, indent=2))
+    write_text_atomic(args.out / "layout_sensitivity.md", sensitivity_markdown(result))
+    print(sensitivity_markdown(result))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,180 @@
+"""How much of Table I is the layout? Square-trained models tested on families of worlds that
+all fit the paper's one-sentence descriptions of Rooms1 and Rooms2.
+
+The paper describes Rooms1 as "one vertical wall and one horizontal wall" and Rooms2 as "one
+horizontal and three vertical walls"; ``docs/DESIGN.md`` had to guess their walls. Table I's
+Rooms1 and Rooms2 columns are models trained on Square, so a layout costs only a test database
+and an evaluation per model: ``layout_family`` draws layouts that fit a sentence (wall
+positions and lengths, attached to the outer wall or to each other, with openings at least
+``MIN_GAP`` wide), and ``layout_sensitivity`` evaluates the published Square models on each, to
+report every cell as the range over the family with the paper's value placed in it. The
+built-in worlds are not changed to fit the paper.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from sensorimotor.analysis.tables import PAPER_TABLE_I
+from sensorimotor.errors import InputError
+from sensorimotor.learn.evaluate import evaluate_run, load_run
+from sensorimotor.sim.database import generate
+from sensorimotor.sim.world import World, load_world, point_segment_distance, world_from_dict
+
+SIZE = 50.0  # the paper's worlds are 50 x 50
+MIN_GAP = 6.0  # units; an opening between a wall's free end and another wall
+SENTENCES = {
+    "rooms1": "one vertical wall and one horizontal wall",
+    "rooms2": "one horizontal and three vertical walls",
+}
+
+
+def _rooms1(rng: np.random.Generator) -> list[list[float]]:
+    """A vertical wall from the bottom or the top outer wall, and a horizontal wall from the
+    left or right outer wall or from the vertical wall, not crossing it."""
+    while True:
+        xv = float(rng.choice(np.arange(15, 40, 5)))
+        length = float(rng.choice(np.arange(25, 45, 5)))
+        v = [xv, 0.0, xv, length] if rng.random() < 0.5 else [xv, SIZE - length, xv, SIZE]
+        yh = float(rng.choice(np.arange(15, 40, 5)))
+        m = float(rng.choice(np.arange(10, 25, 5)))
+        on_v = v[1] <= yh <= v[3]
+        anchor = rng.choice(["left", "right", "wall"] if on_v else ["left", "right"])
+        if anchor == "left":
+            h = [0.0, yh, m, yh]
+        elif anchor == "right":
+            h = [SIZE - m, yh, SIZE, yh]
+        else:
+            h = [xv, yh, xv + m, yh] if rng.random() < 0.5 else [xv - m, yh, xv, yh]
+        if min(h) < 0 or max(h[0], h[2]) > SIZE or (on_v and h[0] < xv < h[2]):
+            continue  # outside the world, or crossing the vertical wall
+        ends = np.array([h[0], h[2]]), np.array([yh, yh])
+        gap = point_segment_distance(np.array([v]), *ends).min()
+        if gap < 1e-9 or gap >= MIN_GAP:  # attached to it, or leaving an opening
+            return [v, h]
+
+
+def _rooms2(rng: np.random.Generator) -> list[list[float]]:
+    """A horizontal wall from the left or right outer wall, and three vertical walls, each from
+    the bottom or top outer wall or from the horizontal wall, spaced and leaving openings."""
+    while True:
+        yh = float(rng.choice(np.arange(20, 35, 2.5)))
+        m = float(rng.choice(np.arange(30, 45, 2.5)))
+        h = [0.0, yh, m, yh] if rng.random() < 0.5 else [SIZE - m, yh, SIZE, yh]
+        xs = np.sort(rng.choice(np.arange(8, 44, 2.0), 3, replace=False))
+        if np.diff(xs).min() < 8:
+            continue
+        walls = [h]
+        for x in xs.tolist():
+            below = rng.random() < 0.5
+            room = yh if below else SIZE - yh  # the span between the outer and the horizontal wall
+            length = float(rng.uniform(10, room - MIN_GAP)) if room - MIN_GAP > 10 else None
+            if length is None:
+                break
+            on_h = h[0] <= x <= h[2]
+            from_outer = not on_h or rng.random() < 0.5
+            if below:
+                walls.append([x, 0.0, x, length] if from_outer else [x, yh - length, x, yh])
+            else:
+                walls.append([x, SIZE - length, x, SIZE] if from_outer else [x, yh, x, yh + length])
+        if len(walls) == 4:
+            return [[round(v, 3) for v in w] for w in walls]
+
+
+def layout_family(world: str, count: int, seed: int = 0) -> list[World]:
+    """``count`` distinct layouts that fit the paper's sentence for ``world`` (rooms1, rooms2),
+    named ``{world}-layoutK``; the first is the built-in world (DESIGN.md's guess), renamed."""
+    draw = {"rooms1": _rooms1, "rooms2": _rooms2}.get(world)
+    if draw is None:
+        raise InputError(f"no layout family for {world!r}: use rooms1 or rooms2")
+    rng = np.random.default_rng(seed)
+    builtin = load_world(world)
+    out = [builtin.walls.tolist()]
+    while len(out) < count:
+        walls = draw(rng)
+        if walls not in out:
+            out.append(walls)
+    return [
+        world_from_dict({"name": f"{world}-layout{k}", "size": SIZE, "walls": walls})
+        for k, walls in enumerate(out)
+    ]
+
+
+def layout_sensitivity(
+    runs: Sequence[Path],
+    worlds: Sequence[str] = ("rooms1", "rooms2"),
+    layouts: int = 12,
+    data_seeds: Sequence[int] = (0, 1),
+    steps: int = 200_000,
+    log: Callable[[str], None] = lambda line: None,
+) -> dict:
+    """Test error of each Square-trained run in ``runs`` on each layout of each family (one
+    test database per layout and data seed, its last 10 %); per model and world: the mean over
+    the runs' seeds for each layout and data seed, their range over the family, the paper's
+    value and where it sits, and the spread over data seeds of the built-in layout."""
+    loaded = [load_run(r) for r in runs]
+    if any(r.trained_on != "square" for r in loaded):
+        raise InputError("layout sensitivity reads models trained on square (Table I)")
+    kinds = sorted({r.kind for r in loaded}, key=list(PAPER_TABLE_I).index)
+    data_seeds = list(data_seeds)
+    result: dict = {"steps": steps, "data_seeds": data_seeds, "worlds": {}}
+    for name in worlds:
+        family = layout_family(name, layouts)
+        errors = {k: np.zeros((len(family), len(data_seeds))) for k in kinds}
+        for i, w in enumerate(family):
+            for j, s in enumerate(data_seeds):
+                db = generate(w, steps, seed=s)
+                per_run: dict[str, list[float]] = {k: [] for k in kinds}
+                for run in loaded:
+                    per_run[run.kind].append(evaluate_run(run, db)["errors"][w.name])
+                for k in kinds:
+                    errors[k][i, j] = float(np.mean(per_run[k]))
+            log(f"{name}: layout {i + 1}/{len(family)} done")
+        cells = {}
+        for k in kinds:
+            e = errors[k]
+            paper = PAPER_TABLE_I[k][name]
+            cells[k] = {
+                "min": float(e.min()),
+                "max": float(e.max()),
+                "builtin": float(e[0].mean()),
+                "builtin_seed_spread": float(e[0].max() - e[0].min()),
+                "paper": paper,
+                "paper_inside": bool(e.min() <= paper <= e.max()),
+                "paper_quantile": float((e < paper).mean()),
+                "per_layout": e.mean(axis=1).tolist(),
+            }
+        result["worlds"][name] = {
+            "sentence": SENTENCES[name],
+            "layouts": [w.walls.tolist() for w in family],
+            "cells": cells,
+        }
+    return result
+
+
+def sensitivity_markdown(result: dict) -> str:
+    """The report section: one table per world, a cell per model."""
+    lines = ["## How much of Table I is the layout?", ""]
+    for name, res in result["worlds"].items():
+        n = len(res["layouts"])
+        lines += [
+            f'**{name}** ("{res["sentence"]}"): {n} layouts, the built-in one first, '
+            f"{len(result['data_seeds'])} data seeds of {result['steps']:,} steps each (test: "
+            "the last 10 %); Square-trained models, mean over their seeds; tests below the paper: "
+            "the share of (layout, data seed) pairs whose error is below the paper's.",
+            "",
+            "| model | family range | built-in (± half its data-seed range) | paper | "
+            "paper inside? | tests below the paper |",
+            "|---|---|---|---|---|---|",
+        ]
+        for kind, c in res["cells"].items():
+            lines.append(
+                f"| {kind} | {c['min']:.5f} - {c['max']:.5f} | {c['builtin']:.5f} "
+                f"(± {c['builtin_seed_spread'] / 2:.5f}) | {c['paper']:.5f} | "
+                f"{'yes' if c['paper_inside'] else 'no'} | {100 * c['paper_quantile']:.0f} % |"
+            )
+        lines.append("")
+    return "\n".join(lines)

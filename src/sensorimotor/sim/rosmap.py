@@ -1,0 +1,212 @@
+"""Real building maps: a ROS ``map_server`` occupancy grid turned into a world's wall segments.
+
+A map is a ``.yaml`` file beside an image (``.pgm`` or ``.png``), the format robotics labs
+keep their buildings in (http://wiki.ros.org/map_server#Map_format)::
+
+    image: floor2.pgm          # the image, relative to the .yaml
+    resolution: 0.05           # metres per pixel
+    origin: [-12.0, -8.5, 0.0] # the lower-left pixel's pose in the map frame (x, y, yaw)
+    negate: 0                  # 1: white is occupied
+    occupied_thresh: 0.65      # occupancy above this: a wall
+    free_thresh: 0.196         # occupancy below this: free
+
+A pixel's occupancy is ``(255 - v) / 255`` (``v / 255`` with ``negate``), for a grey value
+``v`` in 0..255 (colour images are averaged). A pixel whose occupancy is not below
+``free_thresh`` is blocked: occupied or unknown (the outside of a building is unknown, and
+the agent must not wander into it). The walls are the edges between a blocked and a free
+pixel, merged into one segment along each run of such edges in a row or a column. The world
+is the image's rectangle in metres, its lower-left corner at (0, 0): the map's ``origin`` is
+kept in the world file's comment, not in the coordinates (a world starts at 0).
+
+Only the map_server keys above (and ``mode``, ``trinary`` or ``scale``/``raw`` are read as
+trinary) are parsed, by a small reader of ``key: value`` lines: numbers, strings and flat
+``[a, b, c]`` lists; anything else is an InputError naming the file and line.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+
+from sensorimotor.errors import InputError
+from sensorimotor.sim.world import NAME_PATTERN, World, world_from_dict
+
+KEYS = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh", "mode")
+NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
+
+
+def _value(text: str):
+    text = text.strip()
+    if len(text) >= 2 and text[0] == text[-1] and text[0] in "'\"":
+        return text[1:-1]
+    if text.startswith("[") and text.endswith("]"):
+        return [_value(v) for v in text[1:-1].split(",") if v.strip()]
+    if NUMBER.fullmatch(text):
+        return float(text)
+    return text
+
+
+def read_map_yaml(path: str | Path) -> dict:
+    """The map_server keys of ``path``: ``{key: number | str | list}``; InputError if bad."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: map file not found")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as err:
+        raise InputError(f"{path}: cannot read the map file ({err.__class__.__name__})") from None
+    out: dict = {}
+    for number, line in enumerate(text.splitlines(), 1):
+        line = line.split("#", 1)[0].rstrip()
+        if not line.strip():
+            continue
+        key, sep, value = line.partition(":")
+        key = key.strip()
+        if not sep or not value.strip() or line[0].isspace():
+            raise InputError(f"{path}:{number}: expected 'key: value', got {line.strip()!r}")
+        if key in KEYS:
+            out[key] = _value(value)
+    for key in ("image", "resolution"):
+        if key not in out:
+            raise InputError(f"{path}: missing key {key!r}")
+    return out
+
+
+def _number(meta: dict, key: str, default: float, path: Path) -> float:
+    value = meta.get(key, default)
+    if not isinstance(value, float) or not math.isfinite(value):
+        raise InputError(f"{path}: {key!r} must be a number, got {value!r}")
+    return value
+
+
+def read_image(path: Path) -> np.ndarray:
+    """(rows, cols) float64 grey levels in 0..255 of a PGM (P2/P5, 8 or 16 bit) or PNG."""
+    if not path.is_file():
+        raise InputError(f"{path}: map image not found")
+    data = path.read_bytes()
+    if data[:2] in (b"P2", b"P5"):
+        return _read_pgm(data, path)
+    if data[:8] == b"\x89PNG\r\n\x1a\n":
+        from matplotlib.image import imread
+
+        try:
+            img = np.asarray(imread(path), dtype=np.float64)  # floats in [0, 1]
+        except Exception as err:  # a damaged PNG: any of several libraries' errors
+            raise InputError(f"{path}: not a readable PNG ({err.__class__.__name__})") from None
+        if img.ndim == 3:
+            img = img[..., :3].mean(axis=2)
+        return img * 255.0
+    raise InputError(f"{path}: not a map image (a .pgm or .png occupancy grid)")
+
+
+def _read_pgm(data: bytes, path: Path) -> np.ndarray:
+    """A binary (P5) or plain (P2) PGM: header ``P5 width height maxval``, comments ``#``."""
+    tokens: list[bytes] = []
+    pos = 2
+    while len(tokens) < 3:
+        match = re.compile(rb"\s*(#[^\n]*\n\s*)*(\S+)").match(data, pos)
+        if match is None:
+            raise InputError(f"{path}: truncated PGM header")
+        tokens.append(match.group(2))
+        pos = match.end()
+    try:
+        cols, rows, maxval = (int(t) for t in tokens)
+    except ValueError:
+        raise InputError(f"{path}: bad PGM header {tokens!r}") from None
+    if not (cols > 0 and rows > 0 and 0 < maxval < 65536):
+        raise InputError(f"{path}: bad PGM header (size {cols} x {rows}, maxval {maxval})")
+    if data[:2] == b"P5":
+        dtype = np.dtype(">u2") if maxval > 255 else np.dtype("u1")
+        body = data[pos + 1 : pos + 1 + rows * cols * dtype.itemsize]
+        if len(body) != rows * cols * dtype.itemsize:
+            raise InputError(f"{path}: truncated PGM ({rows} x {cols} pixels announced)")
+        img = np.frombuffer(body, dtype=dtype).reshape(rows, cols)
+    else:
+        values = data[pos:].split()
+        if len(values) < rows * cols:
+            raise InputError(f"{path}: truncated PGM ({rows} x {cols} pixels announced)")
+        try:
+            img = np.array([int(v) for v in values[: rows * cols]]).reshape(rows, cols)
+        except ValueError:
+            raise InputError(f"{path}: a PGM pixel is not an integer") from None
+    return img.astype(np.float64) * (255.0 / maxval)
+
+
+def import_ros_map(path: str | Path, name: str | None = None) -> tuple[World, str]:
+    """The world of a map_server map (see the module docstring), and a comment that says
+    where it came from (file, resolution, origin) for its world file."""
+    path = Path(path)
+    meta = read_map_yaml(path)
+    resolution = _number(meta, "resolution", 0.0, path)
+    if resolution <= 0:
+        raise InputError(f"{path}: 'resolution' must be positive, got {resolution:g}")
+    occupied = _number(meta, "occupied_thresh", 0.65, path)
+    free = _number(meta, "free_thresh", 0.196, path)
+    if not 0 <= free < occupied <= 1:
+        raise InputError(
+            f"{path}: thresholds must satisfy 0 <= free_thresh < occupied_thresh <= 1, got "
+            f"{free:g} and {occupied:g}"
+        )
+    negate = _number(meta, "negate", 0.0, path)
+    if negate not in (0.0, 1.0):
+        raise InputError(f"{path}: 'negate' must be 0 or 1, got {negate:g}")
+    origin = meta.get("origin", [0.0, 0.0, 0.0])
+    if not (
+        isinstance(origin, list)
+        and len(origin) == 3
+        and all(isinstance(v, float) and math.isfinite(v) for v in origin)
+    ):
+        raise InputError(f"{path}: 'origin' must be [x, y, yaw], got {origin!r}")
+    if not isinstance(meta["image"], str) or not meta["image"]:
+        raise InputError(f"{path}: 'image' must name the map's image file")
+    image = read_image(path.parent / meta["image"])
+    rows, cols = image.shape
+    occupancy = image / 255.0 if negate else (255.0 - image) / 255.0
+    blocked = ~(occupancy < free)  # occupied or unknown
+    if blocked.all():
+        raise InputError(f"{path}: the map has no free pixel (free_thresh {free:g})")
+    walls = wall_segments(blocked[::-1], resolution)  # row 0 of the image is the top
+    stem = re.sub(r"[^A-Za-z0-9_.+-]+", "-", path.stem).strip("_.+-") or "map"
+    name = name or stem
+    if not NAME_PATTERN.fullmatch(name):
+        raise InputError(f"{path}: cannot name the world {name!r}")
+    world = world_from_dict(
+        {"name": name, "size": [cols * resolution, rows * resolution], "walls": walls}, str(path)
+    )
+    comment = (
+        f"imported from the ROS map {path.name} ({meta['image']}, {cols} x {rows} pixels of "
+        f"{resolution:g} m; origin {origin}: add it to go back to map coordinates)"
+    )
+    return world, comment
+
+
+def wall_segments(blocked: np.ndarray, resolution: float) -> list[list[float]]:
+    """Segments ``[x0, y0, x1, y1]`` along every edge between a blocked and a free cell of
+    ``blocked`` (rows, cols; row 0 at y = 0), merged along each row and column; the edges on
+    the grid's border are left out (the world's outer walls)."""
+    walls: list[list[float]] = []
+    # horizontal edges: between row r - 1 and row r, at y = r
+    change = blocked[1:, :] != blocked[:-1, :]  # (rows - 1, cols)
+    for r, c0, c1 in _runs(change):
+        walls.append([c0 * resolution, (r + 1) * resolution, c1 * resolution, (r + 1) * resolution])
+    # vertical edges: between column c - 1 and column c, at x = c
+    change = blocked[:, 1:] != blocked[:, :-1]  # (rows, cols - 1)
+    for c, r0, r1 in _runs(change.T):
+        walls.append([(c + 1) * resolution, r0 * resolution, (c + 1) * resolution, r1 * resolution])
+    return walls
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int, int]]:
+    """``(row, start, stop)`` of each run of True along each row of ``mask``."""
+    out = []
+    padded = np.zeros((mask.shape[0], mask.shape[1] + 2), dtype=np.int8)
+    padded[:, 1:-1] = mask
+    diff = np.diff(padded, axis=1)  # +1 where a run starts, -1 one past where it stops
+    for r in np.flatnonzero(mask.any(axis=1)):
+        starts = np.flatnonzero(diff[r] == 1)
+        stops = np.flatnonzero(diff[r] == -1)
+        out += [(int(r), int(a), int(b)) for a, b in zip(starts, stops, strict=True)]
+    return out
