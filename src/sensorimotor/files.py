@@ -213,7 +213,8 @@ def read_json(path: str | Path, what: str):
 def folder_lock(folder: Path, what: str) -> Iterator[None]:
     """Hold an exclusive lock on ``folder`` (its ``.lock`` file) while the block writes it:
     a second process that asks for it gets an InputError at once instead of writing the same
-    files. The lock ends with the process, however it ends."""
+    files. The lock ends with the process, however it ends; a block that ends removes the
+    lock file (a process killed inside it leaves an unheld one, which the next takes)."""
     lock = Path(folder) / ".lock"
     try:
         fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)
@@ -226,7 +227,10 @@ def folder_lock(folder: Path, what: str) -> Iterator[None]:
             raise InputError(
                 f"{folder}: another process is writing this {what}; wait for it or use another folder"
             ) from None
-        yield
+        try:
+            yield
+        finally:
+            lock.unlink(missing_ok=True)  # held, so ours to remove: a finished folder has none
     finally:
         os.close(fd)
 

@@ -4,7 +4,6 @@ and the figures' panels and arrows."""
 from __future__ import annotations
 
 import json
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -392,10 +391,9 @@ def test_events_are_those_the_databases_own_lasers_see(tmp_path):
 
 
 def test_analyze_refuses_clusters_fitted_on_another_sensor_layout(square_db_path, tmp_path):
-    db = load_database(square_db_path)
     other = tmp_path / "wide.npz"
-    meta = {**db.meta, "sensor_layout": {"angles": [-1.0, -0.5, 0.0, 0.5, 1.0], "max_range": 10.0}}
-    save_database(replace(db, meta=meta), other)
+    wide = SensorLayout((-1.0, -0.5, 0.0, 0.5, 1.0), 10.0)
+    save_database(generate(load_world("square"), 5_000, seed=0, layout=wide), other)
     with pytest.raises(InputError, match="sensor layout"):
         an.analyze_files("raw", square_db_path, tmp_path / "o", fit_data=other)
 
