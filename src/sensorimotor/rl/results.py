@@ -58,3 +58,16 @@ def summary(values: Sequence[float]) -> dict:
         "iqm_ci_high": iqm_high,
         "per_seed": v,
     }
+
+
+def summary_lines(rl: dict) -> list[str]:
+    """One line per feature set of ``rl.json``: final success, its CI and IQM, transfer."""
+    lines = []
+    for name, r in rl["results"].items():
+        ok = r["success"]
+        where = "".join(f", {w} {t['success']['mean']:.2f}" for w, t in r["transfer"].items())
+        lines.append(
+            f"{name}: success {ok['mean']:.2f} [{ok['ci_low']:.2f}, {ok['ci_high']:.2f}] "
+            f"IQM {ok['iqm']:.2f}{where}"
+        )
+    return lines

@@ -29,7 +29,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv
 
-from sensorimotor.envs import TASK_IDS
+from sensorimotor.envs import TASK_IDS, LaserTaskEnv
 from sensorimotor.errors import InputError
 from sensorimotor.files import atomic_path, write_text_atomic
 from sensorimotor.rl.features import FEATURES, FeatureVecEnv, load_encoder
@@ -224,15 +224,24 @@ def load_agent(path: Path, config: RLConfig) -> dict | None:
     return result
 
 
+def check_inputs(config: RLConfig) -> None:
+    """Every InputError the grid can meet, before any agent trains: a world that does not load
+    or lacks the task's named rooms, a missing or unfitting encoder run."""
+    for world in (config.world, *config.transfer):
+        LaserTaskEnv(config.task, load_world(world))
+    for features in config.features:
+        for seed in range(config.seeds):
+            load_encoder(features, Path(config.runs), config.trained_on, seed)
+
+
 def run_grid(
     config: RLConfig, out: Path, progress: Callable[[str, int, int], None] | None = None
 ) -> dict:
     """Train (or reuse) every agent of ``config`` in ``out``, write ``rl.json`` and ``rl.png``;
     return ``rl.json``'s content. ``progress(features, seed, steps_done)`` follows training."""
+    check_inputs(config)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    for world in (config.world, *config.transfer):
-        load_world(world)
     agents: dict[str, list[dict]] = {}
     for features in config.features:
         for seed in range(config.seeds):
