@@ -28,7 +28,7 @@ from sensorimotor.rl.features import (
     load_encoder,
     parse_features,
 )
-from sensorimotor.rl.results import bootstrap_ci, iqm, summary
+from sensorimotor.rl.results import bootstrap_ci, iqm, summary, verdicts
 from sensorimotor.rl.runner import EVAL_SEED, RLConfig, evaluate, run_grid
 from sensorimotor.sim.database import scale_sensors
 
@@ -138,6 +138,22 @@ def test_bootstrap_interval_and_iqm_by_hand():
     assert s["per_seed"] == [0.2, 0.4, 0.9]
     with pytest.raises(ValueError, match="finite"):
         summary([0.1, float("nan")])
+
+
+def test_the_verdict_needs_every_motor_feature_set_above_raw_by_its_interval():
+    def scores(*v):
+        return {"success": {"per_seed": list(v)}}
+
+    results = {"raw": scores(0.1, 0.2, 0.3), "rec-sm": scores(0.5, 0.6, 0.7)}
+    v = verdicts(results)
+    assert v["motors_help"]["differences"]["rec-sm"]["mean"] == pytest.approx(0.4)
+    assert v["motors_help"]["supported"] is True
+    assert v["pose_beats_random"]["supported"] is None  # not run
+    results["sm"] = scores(0.3, 0.1, 0.2)  # as good as raw on average, not better
+    assert verdicts(results)["motors_help"]["supported"] is False
+    results |= {"pose": scores(0.9, 0.8, 1.0), "random": scores(0.0, 0.1, 0.0)}
+    assert verdicts(results)["pose_beats_random"]["supported"] is True
+    assert verdicts({"pose": scores(0.5)})["motors_help"]["supported"] is None
 
 
 def tiny_config(**kw) -> RLConfig:

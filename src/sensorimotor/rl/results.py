@@ -61,7 +61,8 @@ def summary(values: Sequence[float]) -> dict:
 
 
 def summary_lines(rl: dict) -> list[str]:
-    """One line per feature set of ``rl.json``: final success, its CI and IQM, transfer."""
+    """One line per feature set of ``rl.json``: final success, its CI and IQM, transfer; then
+    the verdicts."""
     lines = []
     for name, r in rl["results"].items():
         ok = r["success"]
@@ -70,4 +71,55 @@ def summary_lines(rl: dict) -> list[str]:
             f"{name}: success {ok['mean']:.2f} [{ok['ci_low']:.2f}, {ok['ci_high']:.2f}] "
             f"IQM {ok['iqm']:.2f}{where}"
         )
+    v = rl["verdicts"]
+    if v["motors_help"]["supported"] is not None:
+        yes = "supported" if v["motors_help"]["supported"] else "not supported"
+        lines.append(f"{CLAIM}: {yes} ({THRESHOLD})")
+    if v["pose_beats_random"]["supported"] is not None:
+        d = v["pose_beats_random"]["difference"]
+        lines.append(f"pose - random: {d['mean']:+.2f} [{d['ci_low']:+.2f}, {d['ci_high']:+.2f}]")
     return lines
+
+
+MOTOR_FEATURES = ("sm", "rec-sm")  # encoders trained with the motor commands
+CLAIM = "features learned with motors help the agent more than raw readings"
+THRESHOLD = (
+    "supported when, for every motor-trained feature set run (sm, rec-sm), the 95 % bootstrap "
+    "CI of its mean final success minus raw's, paired by seed, lies above 0"
+)
+
+
+def paired_difference(a: Sequence[float], b: Sequence[float]) -> dict:
+    """``summary`` of the per-seed differences ``a[i] - b[i]``: agents of the same seed meet the
+    same training and evaluation starts, so the pairing removes the starts' share of noise."""
+    if len(a) != len(b):
+        raise ValueError(f"paired scores need as many seeds: {len(a)} and {len(b)}")
+    return summary([x - y for x, y in zip(a, b, strict=True)])
+
+
+def verdicts(results: dict) -> dict:
+    """The paper's expectation (conclusion) tested on final success rates, and the sanity check
+    that the oracle ``pose`` beats ``random``; each ``None`` when its feature sets were not run."""
+
+    def diff(a: str, b: str) -> dict | None:
+        if a not in results or b not in results:
+            return None
+        return paired_difference(
+            results[a]["success"]["per_seed"], results[b]["success"]["per_seed"]
+        )
+
+    motors = {f: diff(f, "raw") for f in MOTOR_FEATURES if f in results}
+    motors = {f: d for f, d in motors.items() if d is not None}
+    pose = diff("pose", "random")
+    return {
+        "motors_help": {
+            "claim": CLAIM,
+            "threshold": THRESHOLD,
+            "differences": motors,
+            "supported": all(d["ci_low"] > 0 for d in motors.values()) if motors else None,
+        },
+        "pose_beats_random": {
+            "difference": pose,
+            "supported": None if pose is None else pose["ci_low"] > 0,
+        },
+    }

@@ -33,7 +33,7 @@ from sensorimotor.envs import TASK_IDS, LaserTaskEnv
 from sensorimotor.errors import InputError
 from sensorimotor.files import atomic_path, write_text_atomic
 from sensorimotor.rl.features import FEATURES, FeatureVecEnv, load_encoder
-from sensorimotor.rl.results import summary
+from sensorimotor.rl.results import summary, verdicts
 from sensorimotor.sim.world import load_world
 from sensorimotor.version import __version__
 
@@ -298,4 +298,5 @@ def aggregate(config: RLConfig, agents: dict[str, list[dict]]) -> dict:
         "config": config.agent_config(),
         "version": __version__,
         "results": results,
+        "verdicts": verdicts(results),
     }
