@@ -84,8 +84,8 @@ def summary_lines(rl: dict) -> list[str]:
 MOTOR_FEATURES = ("sm", "rec-sm")  # encoders trained with the motor commands
 CLAIM = "features learned with motors help the agent more than raw readings"
 THRESHOLD = (
-    "supported when, for every motor-trained feature set run (sm, rec-sm), the 95 % bootstrap "
-    "CI of its mean final success minus raw's, paired by seed, lies above 0"
+    "supported when, for every motor-trained feature set in the grid (sm, rec-sm), the 95 % "
+    "bootstrap CI of its mean final success minus raw's, paired by seed, lies above 0"
 )
 
 
