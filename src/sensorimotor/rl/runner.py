@@ -69,8 +69,8 @@ class RLConfig:
     """Parallel environments PPO collects from."""
     ppo: dict = field(
         default_factory=lambda: {
-            "n_steps": 256,
-            "batch_size": 256,
+            "n_steps": 512,
+            "batch_size": 128,
             "n_epochs": 10,
             "learning_rate": 3e-4,
             "gamma": 0.99,
@@ -134,11 +134,14 @@ def evaluate(model: PPO, venv: FeatureVecEnv, episodes: int) -> dict:
 
 
 class _Curve(BaseCallback):
-    """Evaluates every ``every`` steps into ``curve``; reports the step count to ``progress``."""
+    """Evaluates at step 0 and every ``every`` steps before ``steps`` into ``curve`` (the final
+    evaluation, after the last update, is the caller's); reports the step count to
+    ``progress``."""
 
-    def __init__(self, venv, every: int, episodes: int, progress: Callable[[int], None]):
+    def __init__(self, venv, every: int, episodes: int, steps: int, progress: Callable):
         super().__init__()
         self.venv, self.every, self.episodes, self.progress = venv, every, episodes, progress
+        self.steps = steps
         self.curve: dict[str, list] = {"steps": [], "success": [], "return": []}
         self.next = 0
 
@@ -153,7 +156,7 @@ class _Curve(BaseCallback):
         self.next = self.every
 
     def _on_step(self) -> bool:
-        if self.num_timesteps >= self.next:
+        if self.next <= self.num_timesteps < self.steps:
             self.record()
             self.next += self.every
         self.progress(int(self.num_timesteps))
@@ -175,10 +178,9 @@ def train_agent(
     folder.mkdir(parents=True)
     tb = str(folder / "tb") if _has_tensorboard() else None
     model = PPO("MlpPolicy", venv, seed=seed, device="cpu", tensorboard_log=tb, **config.ppo)
-    curve = _Curve(eval_venv, config.eval_every, config.eval_episodes, progress)
+    curve = _Curve(eval_venv, config.eval_every, config.eval_episodes, config.steps, progress)
     model.learn(total_timesteps=config.steps, callback=curve, tb_log_name="ppo")
-    if curve.curve["steps"][-1] != model.num_timesteps:
-        curve.record()  # the final score
+    curve.record()  # the final score (PPO learns whole rollouts: steps rounded up to one)
     transfer = {}
     for world in config.transfer:
         tvenv = make_env(config, world, features, encoder, eval_envs, EVAL_SEED)
