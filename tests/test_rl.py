@@ -154,6 +154,8 @@ def test_the_verdict_needs_every_motor_feature_set_above_raw_by_its_interval():
     results |= {"pose": scores(0.9, 0.8, 1.0), "random": scores(0.0, 0.1, 0.0)}
     assert verdicts(results)["pose_beats_random"]["supported"] is True
     assert verdicts({"pose": scores(0.5)})["motors_help"]["supported"] is None
+    other = {f: {"success_stochastic": r["success"]} for f, r in results.items()}
+    assert verdicts(other, "success_stochastic") == verdicts(results)  # the score is chosen
 
 
 def tiny_config(**kw) -> RLConfig:
@@ -172,6 +174,8 @@ def test_a_grid_resumed_after_a_lost_agent_gives_the_same_bytes(tmp_path):
     assert set(r["transfer"]) == {"square"}
     assert r["encoder_runs"] == [str(RUNS / "rooms1__rec-s__s0")]
     assert 0.0 <= r["success"]["mean"] <= 1.0
+    assert len(r["curve"]["success_stochastic"]["mean"]) == 3  # both policies, every evaluation
+    assert set(rl["verdicts"]) == {"success", "success_stochastic"}
     assert (tmp_path / "rl.png").stat().st_size > 0
     assert (tmp_path / "raw__s0" / "policy.zip").is_file()
     shutil.rmtree(tmp_path / "rec-s__s0")  # as if stopped while training it

@@ -64,20 +64,24 @@ def summary_lines(rl: dict) -> list[str]:
     """One line per feature set of ``rl.json``: final success, its CI and IQM, transfer; then
     the verdicts."""
     lines = []
-    for name, r in rl["results"].items():
-        ok = r["success"]
-        where = "".join(f", {w} {t['success']['mean']:.2f}" for w, t in r["transfer"].items())
-        lines.append(
-            f"{name}: success {ok['mean']:.2f} [{ok['ci_low']:.2f}, {ok['ci_high']:.2f}] "
-            f"IQM {ok['iqm']:.2f}{where}"
-        )
-    v = rl["verdicts"]
-    if v["motors_help"]["supported"] is not None:
-        yes = "supported" if v["motors_help"]["supported"] else "not supported"
-        lines.append(f"{CLAIM}: {yes} ({THRESHOLD})")
-    if v["pose_beats_random"]["supported"] is not None:
-        d = v["pose_beats_random"]["difference"]
-        lines.append(f"pose - random: {d['mean']:+.2f} [{d['ci_low']:+.2f}, {d['ci_high']:+.2f}]")
+    for score, how in (("success", "deterministic"), ("success_stochastic", "stochastic")):
+        lines.append(f"final success, {how} policy, mean [95 % CI] IQM, then transfer:")
+        for name, r in rl["results"].items():
+            ok = r[score]
+            where = "".join(f", {w} {t[score]['mean']:.2f}" for w, t in r["transfer"].items())
+            lines.append(
+                f"  {name}: {ok['mean']:.2f} [{ok['ci_low']:.2f}, {ok['ci_high']:.2f}] "
+                f"IQM {ok['iqm']:.2f}{where}"
+            )
+        v = rl["verdicts"][score]
+        if v["motors_help"]["supported"] is not None:
+            yes = "supported" if v["motors_help"]["supported"] else "not supported"
+            lines.append(f"  {CLAIM}: {yes}")
+        if v["pose_beats_random"]["supported"] is not None:
+            d = v["pose_beats_random"]["difference"]
+            lines.append(
+                f"  pose - random: {d['mean']:+.2f} [{d['ci_low']:+.2f}, {d['ci_high']:+.2f}]"
+            )
     return lines
 
 
@@ -97,16 +101,15 @@ def paired_difference(a: Sequence[float], b: Sequence[float]) -> dict:
     return summary([x - y for x, y in zip(a, b, strict=True)])
 
 
-def verdicts(results: dict) -> dict:
-    """The paper's expectation (conclusion) tested on final success rates, and the sanity check
-    that the oracle ``pose`` beats ``random``; each ``None`` when its feature sets were not run."""
+def verdicts(results: dict, score: str = "success") -> dict:
+    """The paper's expectation (conclusion) tested on the final ``score`` (a success rate), and
+    the sanity check that the oracle ``pose`` beats ``random``; each ``None`` when its feature
+    sets were not run."""
 
     def diff(a: str, b: str) -> dict | None:
         if a not in results or b not in results:
             return None
-        return paired_difference(
-            results[a]["success"]["per_seed"], results[b]["success"]["per_seed"]
-        )
+        return paired_difference(results[a][score]["per_seed"], results[b][score]["per_seed"])
 
     motors = {f: diff(f, "raw") for f in MOTOR_FEATURES if f in results}
     motors = {f: d for f, d in motors.items() if d is not None}

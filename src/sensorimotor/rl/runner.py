@@ -110,10 +110,11 @@ def make_env(config: RLConfig, world: str, features: str, encoder, n: int, seed:
     return FeatureVecEnv(venv, features, encoder)
 
 
-def evaluate(model: PPO, venv: FeatureVecEnv, episodes: int) -> dict:
-    """Success rate and mean return of ``episodes`` episodes of the deterministic policy,
-    shared among the environments (environment i plays ``episodes // n`` or one more); the
-    environments are reseeded with ``EVAL_SEED`` first, so every call plays the same starts."""
+def evaluate(model: PPO, venv: FeatureVecEnv, episodes: int, deterministic: bool = True) -> dict:
+    """Success rate and mean return of ``episodes`` episodes of the policy (its mean action,
+    or with ``deterministic=False`` actions sampled from it), shared among the environments
+    (environment i plays ``episodes // n`` or one more); the environments are reseeded with
+    ``EVAL_SEED`` first, so every call plays the same starts."""
     n = venv.num_envs
     quota = np.array([episodes // n + (i < episodes % n) for i in range(n)])  # (n,)
     venv.seed(EVAL_SEED)
@@ -121,7 +122,7 @@ def evaluate(model: PPO, venv: FeatureVecEnv, episodes: int) -> dict:
     played, running = np.zeros(n, dtype=int), np.zeros(n)
     successes, returns = [], []
     while (played < quota).any():
-        actions, _ = model.predict(obs, deterministic=True)
+        actions, _ = model.predict(obs, deterministic=deterministic)
         obs, rewards, dones, infos = venv.step(actions)
         running += rewards
         for i in np.flatnonzero(dones):
@@ -133,6 +134,19 @@ def evaluate(model: PPO, venv: FeatureVecEnv, episodes: int) -> dict:
     return {"success": float(np.mean(successes)), "return": float(np.mean(returns))}
 
 
+SCORES = ("success", "return", "success_stochastic", "return_stochastic")
+
+
+def evaluate_both(model: PPO, venv: FeatureVecEnv, episodes: int) -> dict:
+    """``evaluate`` of the deterministic policy (``success``, ``return``: what the issue and
+    stable-baselines3's ``EvalCallback`` measure) and of the stochastic one (``*_stochastic``):
+    a policy without memory that always takes its mean action can push against a wall for ever
+    (same readings, same action), where its own sampled actions slide off it."""
+    det = evaluate(model, venv, episodes)
+    sto = evaluate(model, venv, episodes, deterministic=False)
+    return {**det, "success_stochastic": sto["success"], "return_stochastic": sto["return"]}
+
+
 class _Curve(BaseCallback):
     """Evaluates at step 0 and every ``every`` steps before ``steps`` into ``curve`` (the final
     evaluation, after the last update, is the caller's); reports the step count to
@@ -142,14 +156,13 @@ class _Curve(BaseCallback):
         super().__init__()
         self.venv, self.every, self.episodes, self.progress = venv, every, episodes, progress
         self.steps = steps
-        self.curve: dict[str, list] = {"steps": [], "success": [], "return": []}
+        self.curve: dict[str, list] = {"steps": [], **{k: [] for k in SCORES}}
         self.next = 0
 
     def record(self) -> None:
-        score = evaluate(self.model, self.venv, self.episodes)
         self.curve["steps"].append(int(self.num_timesteps))
-        self.curve["success"].append(score["success"])
-        self.curve["return"].append(score["return"])
+        for key, value in evaluate_both(self.model, self.venv, self.episodes).items():
+            self.curve[key].append(value)
 
     def _on_training_start(self) -> None:
         self.record()  # the untrained policy, at step 0
@@ -184,7 +197,7 @@ def train_agent(
     transfer = {}
     for world in config.transfer:
         tvenv = make_env(config, world, features, encoder, eval_envs, EVAL_SEED)
-        transfer[world] = evaluate(model, tvenv, config.eval_episodes)
+        transfer[world] = evaluate_both(model, tvenv, config.eval_episodes)
     with atomic_path(folder / "policy.zip", ".zip") as tmp:
         model.save(tmp)
     c = curve.curve
@@ -195,7 +208,7 @@ def train_agent(
         "config": config.agent_config(),
         "version": __version__,
         "curve": c,
-        "final": {"success": c["success"][-1], "return": c["return"][-1]},
+        "final": {k: c[k][-1] for k in SCORES},
         "transfer": transfer,
         "seconds": round(time.perf_counter() - start, 1),
     }
@@ -275,16 +288,15 @@ def aggregate(config: RLConfig, agents: dict[str, list[dict]]) -> dict:
     for features, rs in agents.items():
         curve_steps = rs[0]["curve"]["steps"]
         curve = {"steps": curve_steps}
-        for key in ("success", "return"):
+        for key in SCORES:
             per_step = np.array([r["curve"][key] for r in rs])  # (seeds, evaluations)
             stats = [summary(per_step[:, j]) for j in range(per_step.shape[1])]
             curve[key] = {k: [s[k] for s in stats] for k in ("mean", "ci_low", "ci_high")}
         results[features] = {
-            "success": summary([r["final"]["success"] for r in rs]),
-            "return": summary([r["final"]["return"] for r in rs]),
+            **{k: summary([r["final"][k] for r in rs]) for k in SCORES},
             "curve": curve,
             "transfer": {
-                w: {k: summary([r["transfer"][w][k] for r in rs]) for k in ("success", "return")}
+                w: {k: summary([r["transfer"][w][k] for r in rs]) for k in SCORES}
                 for w in config.transfer
             },
             "encoder_runs": [r["encoder_run"] for r in rs],
@@ -300,5 +312,5 @@ def aggregate(config: RLConfig, agents: dict[str, list[dict]]) -> dict:
         "config": config.agent_config(),
         "version": __version__,
         "results": results,
-        "verdicts": verdicts(results),
+        "verdicts": {k: verdicts(results, k) for k in ("success", "success_stochastic")},
     }
