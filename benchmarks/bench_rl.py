@@ -8,6 +8,9 @@ Two tables, each with a ratio to a reference measured in the same run:
 2. PPO (``sensorimotor.rl.runner`` settings, no evaluation) steps per second for each feature
    set, against PPO on ``raw`` (the issue's target: ``rec-sm`` at no less than half of it).
 
+Speeds are per second of this process's CPU time (``time.process_time``, one thread): on a
+machine shared with other work, wall time measures the neighbours too.
+
 Run by hand: ``python benchmarks/bench_rl.py [--steps N] [--ppo-steps N] [--envs N]``.
 """
 
@@ -36,12 +39,12 @@ def plain_env_speed(steps: int) -> float:
     env = gym.make(TASK_IDS["corner"], world="rooms1")
     env.reset(seed=0)
     actions = np.random.default_rng(0).uniform(-1, 1, (steps, 2)).astype(np.float32)
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     for a in actions:
         *_, terminated, truncated, _ = env.step(a)
         if terminated or truncated:
             env.reset()
-    return steps / (time.perf_counter() - t0)
+    return steps / (time.process_time() - t0)
 
 
 def feature_env_speed(features: str, steps: int, n: int) -> float:
@@ -49,10 +52,10 @@ def feature_env_speed(features: str, steps: int, n: int) -> float:
     venv = make_env(RLConfig(), "rooms1", features, encoder, n, 0)
     venv.reset()
     actions = np.random.default_rng(0).uniform(-1, 1, (steps // n, n, 2)).astype(np.float32)
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     for a in actions:
         venv.step(a)
-    return (steps // n) * n / (time.perf_counter() - t0)
+    return (steps // n) * n / (time.process_time() - t0)
 
 
 def ppo_speed(features: str, steps: int) -> float:
@@ -60,9 +63,9 @@ def ppo_speed(features: str, steps: int) -> float:
     encoder, _ = load_encoder(features, RUNS, "rooms1", 0)
     venv = make_env(config, "rooms1", features, encoder, config.n_envs, 0)
     model = PPO("MlpPolicy", venv, seed=0, device="cpu", **config.ppo)
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     model.learn(total_timesteps=steps)
-    return model.num_timesteps / (time.perf_counter() - t0)
+    return model.num_timesteps / (time.process_time() - t0)
 
 
 def main() -> None:
@@ -73,7 +76,7 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(1)
     console = Console()
-    console.print(f"sensorimotor {__version__}, torch {torch.__version__}, one thread")
+    console.print(f"sensorimotor {__version__}, torch {torch.__version__}, one thread, CPU time")
 
     plain = plain_env_speed(args.steps)
     table = Table(title=f"environment steps/s, corner in rooms1, {args.envs} environments")
