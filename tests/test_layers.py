@@ -25,7 +25,8 @@ LAYERS = {
     "analysis": {"errors", "files", "version", "sim", "learn"},
     "report": {"errors", "files", "version", "sim", "learn", "analysis"},
     "envs": {"errors", "sim"},
-    "cli": {"errors", "files", "version", "sim", "learn", "analysis", "report"},
+    "rl": {"errors", "files", "version", "sim", "learn", "envs"},
+    "cli": {"errors", "files", "version", "sim", "learn", "analysis", "report", "rl"},
     "__main__": {"cli"},
     "__init__": {"errors", "version", "sim", "learn", "analysis", "report"},
 }

@@ -328,3 +328,123 @@ def test_a_start_pose_is_checked_against_the_worlds_own_width_and_height():
     assert info["pose"][0] == 45.0
     with pytest.raises(ValueError, match="pose"):
         env.reset(options={"pose": (10.0, 30.0, 0.0)})  # y beyond the height
+
+
+# --- the tasks (envs/tasks.py) -------------------------------------------------------------
+from sensorimotor.envs import TASK_IDS, LaserTaskEnv  # noqa: E402
+from sensorimotor.envs.laser_world import MAX_TURN  # noqa: E402
+from sensorimotor.envs.tasks import BUDGETS, EXPLORE_SUCCESS, GRID  # noqa: E402
+
+STILL = np.array([-1.0, 0.0], dtype=np.float32)  # d = 0, r = 0
+
+
+@pytest.mark.parametrize("task", TASK_IDS)
+def test_tasks_pass_the_checker_without_a_warning(task):
+    """The [-1, 1] action box: check_env has nothing to say (pytest turns warnings to errors)."""
+    env = gym.make(TASK_IDS[task], world="rooms1")
+    check_env(env.unwrapped)
+    assert env.spec.max_episode_steps == BUDGETS[task]
+    assert env.action_space == gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
+
+
+def test_the_box_is_rescaled_to_d_and_r_and_clipped():
+    env = LaserTaskEnv("explore", "rooms1")
+    env.reset(options={"pose": (10.0, 10.0, 0.0)})
+    _, _, _, _, info = env.step(np.array([1.0, 0.0]))  # d = 1
+    np.testing.assert_allclose(info["pose"], [11.0, 10.0, 0.0])
+    _, _, _, _, info = env.step(np.array([0.0, 0.5]))  # d = 0.5, r = 0.55 pi
+    np.testing.assert_allclose(info["pose"], [11.5, 10.0, 0.5 * MAX_TURN])
+    _, _, _, _, info = env.step(np.array([-7.0, -9.0]))  # clipped: d = 0, r = -1.1 pi
+    np.testing.assert_allclose(info["pose"], [11.5, 10.0, -0.5 * MAX_TURN])
+    with pytest.raises(ValueError, match="finite"):
+        env.step(np.array([np.nan, 0.0]))
+
+
+@pytest.mark.parametrize("task", ["corner", "explore"])
+def test_extreme_actions_never_cross_a_wall(task):
+    """Full-speed actions at the box's corners and beyond it, for many steps, in rooms2."""
+    env = LaserTaskEnv(task, "rooms2")
+    rng = np.random.default_rng(1)
+    choices = np.array([[1, 0], [1, 1], [1, -1], [5, 0.01], [-1, 1], [1, 0.05]], dtype=float)
+    _, info = env.reset(seed=0)
+    collisions = 0
+    for _ in range(3000):
+        start = info["pose"][:2]
+        _, _, terminated, _, info = env.step(choices[rng.integers(len(choices))])
+        stop = info["pose"][:2]
+        assert 0.0 < stop[0] < env.world.width
+        assert 0.0 < stop[1] < env.world.height
+        assert not crossed(start, stop, env.segments), (start, stop)
+        collisions += info["collision"]
+        if terminated:
+            _, info = env.reset()
+    assert collisions > 100  # the walls were hit, again and again
+
+
+def test_corner_succeeds_near_a_corner_facing_it_and_only_then():
+    env = LaserTaskEnv("corner", "rooms1")
+    toward = math.atan2(-1.0, -1.0)  # from (1, 1) toward the corner (0, 0)
+    env.reset(options={"pose": (1.0, 1.0, toward + math.pi)})  # back to it
+    _, reward, terminated, _, info = env.step(STILL)
+    assert not terminated
+    assert not info["is_success"]
+    assert reward == 0.0
+    env.reset(options={"pose": (1.0, 1.0, toward)})
+    _, reward, terminated, _, info = env.step(STILL)
+    assert terminated
+    assert info["is_success"]
+    assert reward == 1.0
+    env.reset(options={"pose": (3.0, 3.0, toward)})  # 4.2 units away: walk 1 unit toward it
+    _, reward, terminated, _, _ = env.step(np.array([1.0, 0.0]))
+    assert not terminated
+    assert reward == pytest.approx(0.05)
+
+
+def test_corner_starts_are_redrawn_where_the_task_is_done():
+    env = LaserTaskEnv("corner", "square")
+    for seed in range(200):
+        _, info = env.reset(seed=seed)
+        assert not info["is_success"]
+        assert not env._at_corner()
+
+
+def test_doorway_succeeds_through_the_opening_not_through_the_wall():
+    env = LaserTaskEnv("doorway", "rooms1")  # southwest, northwest, east
+    env.reset(options={"pose": (20.0, 24.5, math.pi / 2)})  # below the opening
+    _, reward, terminated, _, info = env.step(np.array([1.0, 0.0]))
+    assert terminated
+    assert info["is_success"]
+    assert reward == 1.0
+    assert env.world.room_index(*info["pose"][:2, None])[0] == 1  # northwest
+    env.reset(options={"pose": (10.0, 24.5, math.pi / 2)})  # below the wall
+    _, reward, terminated, _, info = env.step(np.array([1.0, 0.0]))
+    assert info["collision"]
+    assert not terminated
+    assert not info["is_success"]
+    assert reward == 0.0
+
+
+def test_doorway_needs_two_named_rooms():
+    with pytest.raises(InputError, match="two named rooms"):
+        LaserTaskEnv("doorway", "square")
+    with pytest.raises(InputError, match="unknown task"):
+        LaserTaskEnv("dance", "rooms1")
+
+
+def test_explore_counts_cells_and_succeeds_at_the_documented_coverage():
+    env = LaserTaskEnv("explore", "square")
+    _, info = env.reset(options={"pose": (0.5, 2.5, 0.0)})  # cell (0, 0), facing +x
+    assert info["coverage"] == 1 / GRID**2
+    total = 0.0
+    for _ in range(48):  # 48 units east along y = 2.5: cells (1..9, 0)
+        _, reward, terminated, _, info = env.step(np.array([1.0, 0.0]))
+        total += reward
+        assert not terminated
+    assert info["coverage"] == pytest.approx(10 / GRID**2)
+    assert total == pytest.approx(0.9)
+    assert info["is_success"] == (10 / GRID**2 >= EXPLORE_SUCCESS)
+    env.visited[:4] = True  # 40 % of the cells
+    _, reward, _, _, info = env.step(STILL)
+    assert info["is_success"]
+    assert reward == 0.0
+    assert EXPLORE_SUCCESS <= 0.4

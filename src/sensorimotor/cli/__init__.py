@@ -10,7 +10,7 @@ import sys
 
 import typer
 
-from sensorimotor.cli import analysis, data, learn, report  # noqa: F401  (registers the commands)
+from sensorimotor.cli import analysis, data, learn, report, rl  # noqa: F401  (registers them)
 from sensorimotor.cli.app import INTERRUPTED, app
 from sensorimotor.cli.world import world_app
 from sensorimotor.errors import InputError

@@ -1,0 +1,48 @@
+"""Commands of the reinforcement-learning layer: agents that act on frozen encoders."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from sensorimotor.cli.app import app, err_console, progress_bar
+
+
+@app.command()
+def rl(
+    task: Annotated[str, typer.Argument(help="corner, doorway or explore.")],
+    world: Annotated[str, typer.Option(help="World the agents learn in.")] = "rooms1",
+    features: Annotated[
+        str, typer.Option(help="Comma-separated: pose, raw, s, sm, rec-s, rec-sm, random.")
+    ] = "pose,raw,rec-sm,random",
+    seeds: Annotated[int, typer.Option(min=1, help="Agents per feature set: seeds 0..N-1.")] = 3,
+    steps: Annotated[int, typer.Option(min=1, help="Environment steps per agent.")] = 100_000,
+    out: Annotated[Path, typer.Option(help="Output folder; run again to go on.")] = Path("rl"),
+    runs: Annotated[Path, typer.Option(help="Trained encoders.")] = Path("docs/results/runs"),
+    trained_on: Annotated[str | None, typer.Option(help="Encoders' world [WORLD].")] = None,
+    transfer: Annotated[str, typer.Option(help="Comma-separated worlds to test in.")] = "",
+    eval_every: Annotated[int, typer.Option(min=1, help="Steps between evaluations.")] = 5_000,
+    eval_episodes: Annotated[int, typer.Option(min=1, help="Episodes an evaluation.")] = 50,
+) -> None:
+    """PPO on frozen encoders' features (the paper's planned RL test): success per feature set."""
+    from sensorimotor.rl import check_extra
+
+    check_extra()
+    from sensorimotor.rl.features import parse_features
+    from sensorimotor.rl.results import summary_lines
+    from sensorimotor.rl.runner import RLConfig, check_inputs, run_grid
+
+    names = parse_features(features)
+    worlds = tuple(w.strip() for w in transfer.split(",") if w.strip())
+    config = RLConfig(task, world, tuple(names), seeds, steps, str(runs), trained_on, worlds,
+                      eval_every, eval_episodes)  # fmt: skip
+    check_inputs(config)  # before the progress bar: an error is one line
+    order = {(f, s): i for i, (f, s) in enumerate((f, s) for f in names for s in range(seeds))}
+    with progress_bar() as bar:
+        job = bar.add_task(f"rl {task}", total=len(names) * seeds * steps)
+        result = run_grid(
+            config, out, lambda f, s, n: bar.update(job, completed=order[f, s] * steps + n)
+        )
+    err_console.print("\n".join([*summary_lines(result), f"wrote {out}/rl.json, rl.png"]))

@@ -1,0 +1,79 @@
+"""The figure of ``sensorimotor rl``: learning curves and final scores per feature set."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from sensorimotor.sim.plots import save_figure
+
+COLORS = {
+    "pose": "black",
+    "raw": "tab:gray",
+    "s": "tab:blue",
+    "sm": "tab:orange",
+    "rec-s": "tab:green",
+    "rec-sm": "tab:red",
+    "random": "tab:purple",
+}
+
+
+def rl_figure(rl: dict) -> Figure:
+    """Left: success rate against environment steps, mean over seeds with its 95 % bootstrap
+    band, one colour per feature set; solid: the deterministic policy, dashed: the stochastic
+    one. Middle and right: final success per feature set (bars: mean, whiskers: CI) in the
+    task's world and in each transfer world, deterministic then stochastic policy."""
+    fig = Figure(figsize=(15, 4.2), layout="constrained")
+    curves, *bars = fig.subplots(1, 3, width_ratios=[3, 2, 2])
+    for name, r in rl["results"].items():
+        c = r["curve"]
+        steps = np.asarray(c["steps"])
+        color = COLORS.get(name)
+        for score, style in (("success", "-"), ("success_stochastic", "--")):
+            curves.plot(steps, c[score]["mean"], style, color=color,
+                        label=name if style == "-" else None)  # fmt: skip
+            curves.fill_between(
+                steps, c[score]["ci_low"], c[score]["ci_high"], color=color, alpha=0.12
+            )
+    curves.set(
+        xlabel="environment steps",
+        ylabel=f"success rate ({rl['eval_episodes']} episodes)",
+        ylim=(-0.02, 1.02),
+        title=f"{rl['task']} in {rl['world']}, {rl['seeds']} seeds: deterministic (solid), "
+        "stochastic (dashed)",
+    )
+    curves.title.set_fontsize("medium")
+    curves.legend(loc="upper left", fontsize="small")
+    for ax, score, how in zip(
+        bars, ("success", "success_stochastic"), ("deterministic", "stochastic"), strict=True
+    ):
+        _final_bars(ax, rl, score)
+        ax.set_title(f"final {how} policy, 95 % CI", fontsize="medium")
+    return fig
+
+
+def _final_bars(ax, rl: dict, score: str) -> None:
+    worlds = [rl["world"], *rl["transfer"]]
+    names = list(rl["results"])
+    width = 0.8 / len(worlds)
+    for k, world in enumerate(worlds):
+        stats = [
+            r[score] if world == rl["world"] else r["transfer"][world][score]
+            for r in rl["results"].values()
+        ]
+        mean = np.array([s["mean"] for s in stats])
+        err = np.array(
+            [[m - s["ci_low"], s["ci_high"] - m] for m, s in zip(mean, stats, strict=True)]
+        ).T
+        x = np.arange(len(names)) + (k - (len(worlds) - 1) / 2) * width
+        ax.bar(x, mean, width, yerr=err, capsize=2, label=world)
+    ax.set_xticks(np.arange(len(names)), names, rotation=30)
+    ax.set(ylabel="final success rate", ylim=(0, 1.05))
+    ax.legend(fontsize="small")
+
+
+def plot_rl(rl: dict, path: str | Path) -> list[Path]:
+    """Write ``rl_figure(rl)`` as a PNG at ``path`` (atomically)."""
+    return save_figure(rl_figure(rl), path)

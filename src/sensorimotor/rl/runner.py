@@ -1,0 +1,316 @@
+"""``sensorimotor rl``: PPO on each feature set and seed, evaluated as it learns, into one folder.
+
+One *agent* is one PPO policy: one feature set, one seed (which is also its encoder's seed,
+``features.load_encoder``). The output folder holds, per agent, ``{features}__s{seed}/`` with
+its ``result.json`` (learning curve, final and transfer scores), ``policy.zip`` and
+TensorBoard logs (``tb/``, when tensorboard is installed); then ``rl.json`` (the statistics
+over seeds, ``results.summary``) and ``rl.png`` (the learning curves). An agent whose
+``result.json`` exists is not trained again: run the same command after a stop to go on (an
+agent stopped half-way starts again from its beginning; it gives the same numbers).
+
+Evaluation: every ``eval_every`` steps, at the start and at the end, the deterministic policy
+plays ``eval_episodes`` episodes on separate environments whose starts are the same for every
+agent (seeded by ``EVAL_SEED``): a paired comparison across feature sets and time.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+from stable_baselines3 import PPO
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.env_util import make_vec_env
+from stable_baselines3.common.vec_env import DummyVecEnv
+
+from sensorimotor.envs import TASK_IDS, LaserTaskEnv
+from sensorimotor.errors import InputError
+from sensorimotor.files import atomic_path, write_text_atomic
+from sensorimotor.rl.features import FEATURES, FeatureVecEnv, load_encoder
+from sensorimotor.rl.results import summary, verdicts
+from sensorimotor.sim.world import load_world
+from sensorimotor.version import __version__
+
+EVAL_SEED = 1_000_000  # the evaluation environments' seed: the same starts for every agent
+DEFAULT_RUNS = Path("docs/results/runs")  # the shipped trained encoders
+
+
+@dataclass(frozen=True)
+class RLConfig:
+    """One experiment: a task in a world, PPO's settings, how it is evaluated."""
+
+    task: str = "corner"
+    """corner, doorway or explore (``envs.tasks``)."""
+    world: str = "rooms1"
+    """The world the agents learn in."""
+    features: tuple[str, ...] = ("pose", "raw", "rec-sm", "random")
+    """Feature sets, each learned by its own agents (``features.FEATURES``)."""
+    seeds: int = 3
+    """Agents per feature set: seeds 0 .. seeds - 1 (and encoder seeds)."""
+    steps: int = 100_000
+    """Environment steps each agent learns for."""
+    runs: str = str(DEFAULT_RUNS)
+    """Folder of trained encoder runs, named {world}__{kind}__s{seed}."""
+    trained_on: str | None = None
+    """The world the encoders were trained on (default: the task's world)."""
+    transfer: tuple[str, ...] = ()
+    """Worlds where the final policy is also evaluated, unchanged."""
+    eval_every: int = 5_000
+    """Steps between evaluations."""
+    eval_episodes: int = 50
+    """Episodes per evaluation (deterministic policy)."""
+    n_envs: int = 8
+    """Parallel environments PPO collects from."""
+    ppo: dict = field(
+        default_factory=lambda: {
+            "n_steps": 512,
+            "batch_size": 128,
+            "n_epochs": 10,
+            "learning_rate": 3e-4,
+            "gamma": 0.99,
+            "gae_lambda": 0.95,
+            "ent_coef": 0.0,
+        }
+    )
+    """stable-baselines3 PPO arguments (MlpPolicy, 2 x 64 tanh)."""
+
+    def __post_init__(self) -> None:
+        if self.task not in TASK_IDS:
+            raise InputError(f"unknown task {self.task!r}: use one of {', '.join(TASK_IDS)}")
+        unknown = [f for f in self.features if f not in FEATURES]
+        if unknown or not self.features:
+            raise InputError(f"unknown features {unknown}: use some of {', '.join(FEATURES)}")
+        for name in ("seeds", "steps", "eval_every", "eval_episodes", "n_envs"):
+            if getattr(self, name) < 1:
+                raise InputError(f"--{name.replace('_', '-')} must be at least 1")
+        object.__setattr__(self, "features", tuple(self.features))
+        object.__setattr__(self, "transfer", tuple(self.transfer))
+        object.__setattr__(self, "trained_on", self.trained_on or self.world)
+
+    def agent_config(self) -> dict:
+        """What one agent's numbers depend on (not which features or how many seeds)."""
+        d = asdict(self)
+        del d["features"], d["seeds"]
+        return d
+
+
+def make_env(config: RLConfig, world: str, features: str, encoder, n: int, seed: int):
+    """``n`` task environments in ``world`` behind ``FeatureVecEnv`` (seeded ``seed + i``)."""
+    load_world(world)  # a bad world name: InputError before any environment is made
+    venv = make_vec_env(
+        TASK_IDS[config.task], n_envs=n, seed=seed, env_kwargs={"world": world},
+        vec_env_cls=DummyVecEnv,
+    )  # fmt: skip
+    return FeatureVecEnv(venv, features, encoder)
+
+
+def evaluate(model: PPO, venv: FeatureVecEnv, episodes: int, deterministic: bool = True) -> dict:
+    """Success rate and mean return of ``episodes`` episodes of the policy (its mean action,
+    or with ``deterministic=False`` actions sampled from it), shared among the environments
+    (environment i plays ``episodes // n`` or one more); the environments are reseeded with
+    ``EVAL_SEED`` first, so every call plays the same starts."""
+    n = venv.num_envs
+    quota = np.array([episodes // n + (i < episodes % n) for i in range(n)])  # (n,)
+    venv.seed(EVAL_SEED)
+    obs = venv.reset()
+    played, running = np.zeros(n, dtype=int), np.zeros(n)
+    successes, returns = [], []
+    while (played < quota).any():
+        actions, _ = model.predict(obs, deterministic=deterministic)
+        obs, rewards, dones, infos = venv.step(actions)
+        running += rewards
+        for i in np.flatnonzero(dones):
+            if played[i] < quota[i]:
+                successes.append(float(infos[i]["is_success"]))
+                returns.append(float(running[i]))
+                played[i] += 1
+            running[i] = 0.0
+    return {"success": float(np.mean(successes)), "return": float(np.mean(returns))}
+
+
+SCORES = ("success", "return", "success_stochastic", "return_stochastic")
+
+
+def evaluate_both(model: PPO, venv: FeatureVecEnv, episodes: int) -> dict:
+    """``evaluate`` of the deterministic policy (``success``, ``return``: what the issue and
+    stable-baselines3's ``EvalCallback`` measure) and of the stochastic one (``*_stochastic``):
+    a policy without memory that always takes its mean action can push against a wall for ever
+    (same readings, same action), where its own sampled actions slide off it."""
+    det = evaluate(model, venv, episodes)
+    sto = evaluate(model, venv, episodes, deterministic=False)
+    return {**det, "success_stochastic": sto["success"], "return_stochastic": sto["return"]}
+
+
+class _Curve(BaseCallback):
+    """Evaluates at step 0 and every ``every`` steps before ``steps`` into ``curve`` (the final
+    evaluation, after the last update, is the caller's); reports the step count to
+    ``progress``."""
+
+    def __init__(self, venv, every: int, episodes: int, steps: int, progress: Callable):
+        super().__init__()
+        self.venv, self.every, self.episodes, self.progress = venv, every, episodes, progress
+        self.steps = steps
+        self.curve: dict[str, list] = {"steps": [], **{k: [] for k in SCORES}}
+        self.next = 0
+
+    def record(self) -> None:
+        self.curve["steps"].append(int(self.num_timesteps))
+        for key, value in evaluate_both(self.model, self.venv, self.episodes).items():
+            self.curve[key].append(value)
+
+    def _on_training_start(self) -> None:
+        self.record()  # the untrained policy, at step 0
+        self.next = self.every
+
+    def _on_step(self) -> bool:
+        if self.next <= self.num_timesteps < self.steps:
+            self.record()
+            self.next += self.every
+        self.progress(int(self.num_timesteps))
+        return True
+
+
+def train_agent(
+    config: RLConfig, features: str, seed: int, folder: Path, progress: Callable[[int], None]
+) -> dict:
+    """Train one agent in ``folder`` (made anew); return its ``result.json`` content."""
+    torch.set_num_threads(1)  # one core per agent; also makes the numbers reproducible
+    start = time.perf_counter()
+    encoder, encoder_run = load_encoder(features, Path(config.runs), config.trained_on, seed)
+    venv = make_env(config, config.world, features, encoder, config.n_envs, seed)
+    eval_envs = min(10, config.eval_episodes)
+    eval_venv = make_env(config, config.world, features, encoder, eval_envs, EVAL_SEED)
+    if folder.exists():
+        shutil.rmtree(folder)  # what a stopped attempt left
+    folder.mkdir(parents=True)
+    tb = str(folder / "tb") if _has_tensorboard() else None
+    model = PPO("MlpPolicy", venv, seed=seed, device="cpu", tensorboard_log=tb, **config.ppo)
+    curve = _Curve(eval_venv, config.eval_every, config.eval_episodes, config.steps, progress)
+    model.learn(total_timesteps=config.steps, callback=curve, tb_log_name="ppo")
+    curve.record()  # the final score (PPO learns whole rollouts: steps rounded up to one)
+    transfer = {}
+    for world in config.transfer:
+        tvenv = make_env(config, world, features, encoder, eval_envs, EVAL_SEED)
+        transfer[world] = evaluate_both(model, tvenv, config.eval_episodes)
+    with atomic_path(folder / "policy.zip", ".zip") as tmp:
+        model.save(tmp)
+    c = curve.curve
+    return {
+        "features": features,
+        "seed": seed,
+        "encoder_run": encoder_run,
+        "config": config.agent_config(),
+        "version": __version__,
+        "curve": c,
+        "final": {k: c[k][-1] for k in SCORES},
+        "transfer": transfer,
+        "seconds": round(time.perf_counter() - start, 1),
+    }
+
+
+def _has_tensorboard() -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec("tensorboard") is not None
+
+
+def agent_folder(out: Path, features: str, seed: int) -> Path:
+    return Path(out) / f"{features}__s{seed}"
+
+
+def load_agent(path: Path, config: RLConfig) -> dict | None:
+    """A finished agent's result, or None when there is none; InputError when it was made
+    with other settings (another experiment in the same folder)."""
+    if not path.is_file():
+        return None
+    try:
+        result = json.loads(path.read_text())
+        made_with = result["config"]
+    except (ValueError, KeyError, TypeError, OSError) as err:
+        raise InputError(f"{path}: not an agent result ({err})") from None
+    if made_with != json.loads(json.dumps(config.agent_config())):
+        raise InputError(f"{path}: made with other settings; use another --out")
+    return result
+
+
+def check_inputs(config: RLConfig) -> None:
+    """Every InputError the grid can meet, before any agent trains: a world that does not load
+    or lacks the task's named rooms, a missing or unfitting encoder run."""
+    for world in (config.world, *config.transfer):
+        LaserTaskEnv(config.task, load_world(world))
+    for features in config.features:
+        for seed in range(config.seeds):
+            load_encoder(features, Path(config.runs), config.trained_on, seed)
+
+
+def run_grid(
+    config: RLConfig, out: Path, progress: Callable[[str, int, int], None] | None = None
+) -> dict:
+    """Train (or reuse) every agent of ``config`` in ``out``, write ``rl.json`` and ``rl.png``;
+    return ``rl.json``'s content. ``progress(features, seed, steps_done)`` follows training."""
+    check_inputs(config)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    agents: dict[str, list[dict]] = {}
+    for features in config.features:
+        for seed in range(config.seeds):
+            path = agent_folder(out, features, seed) / "result.json"
+            result = load_agent(path, config)
+            if result is None:
+                report = (
+                    (lambda f, s: lambda n: progress(f, s, n))(features, seed)
+                    if progress
+                    else (lambda n: None)
+                )
+                result = train_agent(config, features, seed, path.parent, report)
+                write_text_atomic(path, json.dumps(result, indent=2, allow_nan=False))
+            elif progress:
+                progress(features, seed, config.steps)
+            agents.setdefault(features, []).append(result)
+    rl = aggregate(config, agents)
+    write_text_atomic(out / "rl.json", json.dumps(rl, indent=2, allow_nan=False))
+    from sensorimotor.rl.plots import plot_rl
+
+    plot_rl(rl, out / "rl.png")
+    return rl
+
+
+def aggregate(config: RLConfig, agents: dict[str, list[dict]]) -> dict:
+    """``rl.json``: per feature set, the final success and return over seeds (``summary``), the
+    learning curve (mean and CI at each evaluation) and the transfer scores."""
+    results = {}
+    for features, rs in agents.items():
+        curve_steps = rs[0]["curve"]["steps"]
+        curve = {"steps": curve_steps}
+        for key in SCORES:
+            per_step = np.array([r["curve"][key] for r in rs])  # (seeds, evaluations)
+            stats = [summary(per_step[:, j]) for j in range(per_step.shape[1])]
+            curve[key] = {k: [s[k] for s in stats] for k in ("mean", "ci_low", "ci_high")}
+        results[features] = {
+            **{k: summary([r["final"][k] for r in rs]) for k in SCORES},
+            "curve": curve,
+            "transfer": {
+                w: {k: summary([r["transfer"][w][k] for r in rs]) for k in SCORES}
+                for w in config.transfer
+            },
+            "encoder_runs": [r["encoder_run"] for r in rs],
+        }
+    return {
+        "task": config.task,
+        "world": config.world,
+        "trained_on": config.trained_on,
+        "seeds": config.seeds,
+        "steps": config.steps,
+        "eval_episodes": config.eval_episodes,
+        "transfer": list(config.transfer),
+        "config": config.agent_config(),
+        "version": __version__,
+        "results": results,
+        "verdicts": {k: verdicts(results, k) for k in ("success", "success_stochastic")},
+    }

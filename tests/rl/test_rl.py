@@ -1,0 +1,221 @@
+"""Reinforcement learning on frozen encoders: the features the policy sees (shapes, the
+recurrent state carried and reset with the episode), the evaluation's episode accounting, the
+statistics against hand-computed values, a resumed grid giving the same bytes, one-line errors."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from functools import partial
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import torch
+
+pytest.importorskip("stable_baselines3")
+
+from stable_baselines3.common.vec_env import DummyVecEnv
+
+from conftest import assert_one_line_error
+from sensorimotor.envs import TASK_IDS
+from sensorimotor.errors import InputError
+from sensorimotor.rl import check_extra
+from sensorimotor.rl.features import (
+    FEATURES,
+    FeatureVecEnv,
+    load_encoder,
+    parse_features,
+)
+from sensorimotor.rl.results import bootstrap_ci, iqm, summary, verdicts
+from sensorimotor.rl.runner import EVAL_SEED, RLConfig, evaluate, run_grid
+from sensorimotor.sim.database import scale_sensors
+
+RUNS = Path(__file__).parent.parent / "docs" / "results" / "runs"
+TINY_PPO = {"n_steps": 32, "batch_size": 64, "n_epochs": 1, "learning_rate": 3e-4,
+            "gamma": 0.99, "gae_lambda": 0.95, "ent_coef": 0.0}  # fmt: skip
+
+
+def corner_envs(limits: list[int], world: str = "rooms1") -> DummyVecEnv:
+    """Corner task environments truncated after ``limits[i]`` steps, seeded 0, 1, ..."""
+    makers = [
+        partial(gym.make, TASK_IDS["corner"], world=world, max_episode_steps=n) for n in limits
+    ]
+    venv = DummyVecEnv(makers)
+    venv.seed(0)
+    return venv
+
+
+@pytest.mark.parametrize("features", FEATURES)
+def test_each_feature_set_has_its_shape_for_every_environment(features):
+    encoder, run = load_encoder(features, RUNS, "rooms1", 0)
+    assert (run is None) == (features in ("pose", "raw", "random"))
+    venv = FeatureVecEnv(corner_envs([5, 5, 5]), features, encoder)
+    size = {"pose": 4, "raw": 5}.get(features, 10)
+    assert venv.observation_space.shape == (size,)
+    obs = venv.reset()
+    assert obs.shape == (3, size)
+    assert obs.dtype == np.float32
+    obs, *_ = venv.step(np.zeros((3, 2), dtype=np.float32))
+    assert obs.shape == (3, size)
+    assert np.isfinite(obs).all()
+    if features == "pose":  # the oracle: scaled x, y and the heading's cosine and sine
+        pose = venv.venv.buf_infos[0]["pose"]
+        np.testing.assert_allclose(
+            obs[0], [pose[0] / 25 - 1, pose[1] / 25 - 1, np.cos(pose[2]), np.sin(pose[2])],
+            rtol=1e-6,
+        )  # fmt: skip
+
+
+def test_the_recurrent_state_is_carried_through_an_episode_and_reset_with_it():
+    """Env 0 ends after 3 steps, env 1 runs on: the reference is the encoder run from a zero
+    state over each episode's readings (learn.models, one sequence at a time)."""
+    encoder, _ = load_encoder("rec-sm", RUNS, "rooms1", 0)
+    venv = FeatureVecEnv(corner_envs([3, 100]), "rec-sm", encoder)
+    venv.reset()
+    readings = [[info["readings"]] for info in venv.venv.reset_infos]  # per env, its episode
+    actions = np.array([[0.0, 0.3], [0.5, -0.2]], dtype=np.float32)
+    for _ in range(3):
+        obs, _, dones, infos = venv.step(actions)
+        for i in range(2):
+            readings[i].append(infos[i]["readings"])
+    assert dones.tolist() == [True, False]
+
+    def reference(seq) -> np.ndarray:
+        x = torch.from_numpy(scale_sensors(np.array(seq, dtype=np.float32)))[None]  # (1, T, 5)
+        with torch.no_grad():
+            return encoder.encode(x)[0][0, -1].numpy()  # z_s of the last step
+
+    np.testing.assert_allclose(obs[1], reference(readings[1]), atol=1e-6)  # carried 4 steps
+    np.testing.assert_allclose(infos[0]["terminal_observation"], reference(readings[0]), atol=1e-6)
+    start = venv.venv.reset_infos[0]["readings"]
+    np.testing.assert_allclose(obs[0], reference([start]), atol=1e-6)  # a new episode: zero state
+    assert not np.allclose(obs[1], reference([readings[1][-1]]), atol=1e-3)  # memory matters
+
+
+def test_evaluation_counts_each_episode_once_and_plays_the_same_starts():
+    """Stub policy (full speed ahead) on 3 environments for 7 episodes of at most 4 steps: the
+    same numbers as 7 episodes played one by one on environments seeded as the evaluation's."""
+
+    class Ahead:
+        def predict(self, obs, deterministic):
+            assert deterministic
+            return np.tile([1.0, 0.0], (len(obs), 1)).astype(np.float32), None
+
+    venv = FeatureVecEnv(corner_envs([4, 4, 4]), "raw")
+    got = evaluate(Ahead(), venv, 7)
+    assert evaluate(Ahead(), venv, 7) == got
+    successes, returns = [], []
+    for i, episodes in enumerate([3, 2, 2]):  # 7 episodes shared among 3 environments
+        env = gym.make(TASK_IDS["corner"], world="rooms1", max_episode_steps=4)
+        env.reset(seed=EVAL_SEED + i)
+        for e in range(episodes):
+            if e:
+                env.reset()
+            total, done = 0.0, False
+            while not done:
+                _, reward, terminated, truncated, info = env.step(np.array([1.0, 0.0]))
+                total += reward
+                done = terminated or truncated
+            successes.append(float(info["is_success"]))
+            returns.append(total)
+    assert got["success"] == pytest.approx(np.mean(successes))
+    assert got["return"] == pytest.approx(np.mean(returns))
+
+
+def test_bootstrap_interval_and_iqm_by_hand():
+    # n = 2 scores {0, 1}: resampled means are 0, 0.5, 1 with probability 1/4, 1/2, 1/4
+    assert bootstrap_ci([0.0, 1.0]) == (0.0, 1.0)
+    # {0, 0, 0, 1}: P(mean = 0) = 0.316; P(mean <= 0.5) = 0.949, P(mean <= 0.75) = 0.996
+    assert bootstrap_ci([0.0, 0.0, 0.0, 1.0]) == (0.0, 0.75)
+    assert bootstrap_ci([0.4, 0.4, 0.4]) == pytest.approx((0.4, 0.4))
+    assert iqm([1.0, 2.0, 3.0, 4.0, 100.0]) == 3.0  # the lowest and highest dropped
+    assert iqm([4.0, 1.0, 3.0, 2.0]) == 2.5
+    assert iqm([0.0, 1.0, 0.5]) == 0.5  # n = 3: nothing dropped, the mean
+    s = summary([0.2, 0.4, 0.9])
+    assert s["ci_low"] <= s["mean"] <= s["ci_high"]
+    assert s["per_seed"] == [0.2, 0.4, 0.9]
+    with pytest.raises(ValueError, match="finite"):
+        summary([0.1, float("nan")])
+
+
+def test_the_verdict_needs_every_motor_feature_set_above_raw_by_its_interval():
+    def scores(*v):
+        return {"success": {"per_seed": list(v)}}
+
+    results = {"raw": scores(0.1, 0.2, 0.3), "rec-sm": scores(0.5, 0.6, 0.7)}
+    v = verdicts(results)
+    assert v["motors_help"]["differences"]["rec-sm"]["mean"] == pytest.approx(0.4)
+    assert v["motors_help"]["supported"] is True
+    assert v["pose_beats_random"]["supported"] is None  # not run
+    results["sm"] = scores(0.3, 0.1, 0.2)  # as good as raw on average, not better
+    assert verdicts(results)["motors_help"]["supported"] is False
+    results |= {"pose": scores(0.9, 0.8, 1.0), "random": scores(0.0, 0.1, 0.0)}
+    assert verdicts(results)["pose_beats_random"]["supported"] is True
+    assert verdicts({"pose": scores(0.5)})["motors_help"]["supported"] is None
+    other = {f: {"success_stochastic": r["success"]} for f, r in results.items()}
+    assert verdicts(other, "success_stochastic") == verdicts(results)  # the score is chosen
+
+
+def tiny_config(**kw) -> RLConfig:
+    base = {"task": "corner", "features": ("raw", "rec-s"), "seeds": 1, "steps": 128,
+            "runs": str(RUNS), "eval_every": 64, "eval_episodes": 4, "n_envs": 2,
+            "transfer": ("square",), "ppo": TINY_PPO}  # fmt: skip
+    return RLConfig(**{**base, **kw})
+
+
+def test_a_grid_resumed_after_a_lost_agent_gives_the_same_bytes(tmp_path):
+    config = tiny_config()
+    rl = run_grid(config, tmp_path)
+    first = (tmp_path / "rl.json").read_bytes()
+    r = rl["results"]["rec-s"]
+    assert r["curve"]["steps"] == [0, 64, 128]
+    assert set(r["transfer"]) == {"square"}
+    assert r["encoder_runs"] == [str(RUNS / "rooms1__rec-s__s0")]
+    assert 0.0 <= r["success"]["mean"] <= 1.0
+    assert len(r["curve"]["success_stochastic"]["mean"]) == 3  # both policies, every evaluation
+    assert set(rl["verdicts"]) == {"success", "success_stochastic"}
+    assert (tmp_path / "rl.png").stat().st_size > 0
+    assert (tmp_path / "raw__s0" / "policy.zip").is_file()
+    shutil.rmtree(tmp_path / "rec-s__s0")  # as if stopped while training it
+    (tmp_path / "raw__s0" / "policy.zip").unlink()  # a finished agent is not trained again
+    run_grid(config, tmp_path)
+    assert (tmp_path / "rl.json").read_bytes() == first
+    assert not (tmp_path / "raw__s0" / "policy.zip").exists()
+    with pytest.raises(InputError, match="other settings"):
+        run_grid(tiny_config(steps=192), tmp_path)
+
+
+def test_inputs_are_checked_before_any_agent_trains(tmp_path):
+    with pytest.raises(InputError, match="two named rooms"):
+        run_grid(tiny_config(task="doorway", transfer=("square",)), tmp_path / "a")
+    with pytest.raises(InputError, match="run folder not found"):
+        run_grid(tiny_config(runs=str(tmp_path)), tmp_path / "b")
+    other = tmp_path / "runs" / "rooms1__rec-s__s0"  # a run of another sensor layout
+    shutil.copytree(RUNS / "rooms1__rec-s__s0", other)
+    config = json.loads((other / "config.json").read_text())
+    config["data"]["sensor_layout"]["angles"] = [-1.0, -0.5, 0.0, 0.5, 1.0]
+    (other / "config.json").write_text(json.dumps(config))
+    with pytest.raises(InputError, match="sensor layout"):
+        run_grid(tiny_config(runs=str(tmp_path / "runs")), tmp_path / "c")
+    assert not (tmp_path / "a").exists()
+    assert not (tmp_path / "c" / "raw__s0").exists()
+    with pytest.raises(InputError, match="unknown features nope"):
+        parse_features("raw,nope")
+    assert parse_features("raw, pose,raw") == ["raw", "pose"]
+
+
+def test_a_missing_extra_is_one_clear_line(monkeypatch):
+    import importlib.util
+
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name: None)
+    with pytest.raises(InputError, match=r"pip install 'sensorimotor\[rl\]'"):
+        check_extra()
+
+
+def test_the_command_line_refuses_bad_input_in_one_line(cli, tmp_path):
+    proc = cli("rl", "doorway", "--world", "square", "--features", "raw", "--out", tmp_path)
+    assert_one_line_error(proc, "two named rooms")
+    proc = cli("rl", "corner", "--features", "pose,telepathy", "--out", tmp_path)
+    assert_one_line_error(proc, "unknown features telepathy")
