@@ -32,7 +32,7 @@ from sensorimotor.rl.results import bootstrap_ci, iqm, summary, verdicts
 from sensorimotor.rl.runner import EVAL_SEED, RLConfig, evaluate, run_grid
 from sensorimotor.sim.database import scale_sensors
 
-RUNS = Path(__file__).parent.parent / "docs" / "results" / "runs"
+RUNS = Path(__file__).parents[2] / "docs" / "results" / "runs"
 TINY_PPO = {"n_steps": 32, "batch_size": 64, "n_epochs": 1, "learning_rate": 3e-4,
             "gamma": 0.99, "gae_lambda": 0.95, "ent_coef": 0.0}  # fmt: skip
 

@@ -110,7 +110,7 @@ class LaserWorldEnv(gym.Env[np.ndarray, np.ndarray]):
     <TimeLimit<OrderEnforcing<PassiveEnvChecker<LaserWorldEnv<sensorimotor/LaserWorld-v0>>>>>
     >>> observation, info = env.reset(seed=0)
     >>> observation.shape, observation.dtype, sorted(info)
-    ((5,), dtype('float32'), ['collision', 'pose', 'readings'])
+    ((5,), dtype('float32'), ['collision', 'paper_readings', 'pose', 'readings'])
     >>> action = sensorimotor.envs.paper_policy(observation, env.unwrapped.np_random)
     >>> observation, reward, terminated, truncated, info = env.step(action)
     >>> bool((observation >= 0).all() and (observation <= 10).all()), reward, terminated

@@ -52,8 +52,8 @@ import numpy as np
 from sensorimotor.errors import InputError
 from sensorimotor.sim import bagcodec
 from sensorimotor.sim.bagcodec import CMD_TYPES, ODOM_TYPES, SCAN_TYPES, rosbags_reader
-from sensorimotor.sim.core import DEFAULT_LAYOUT, SensorLayout
-from sensorimotor.sim.database import ARRAYS, Database
+from sensorimotor.sim.core import DEFAULT_LAYOUT, MAX_RAYS, SensorLayout, spread_layout
+from sensorimotor.sim.database import Database
 from sensorimotor.sim.world import BUILTIN_WORLDS, World
 from sensorimotor.version import __version__
 
@@ -76,16 +76,9 @@ class BagTopics:
 
 
 def ray_layout(rays: int = 5, fov: float = 1.2, max_range: float = 10.0) -> SensorLayout:
-    """``rays`` lasers spread evenly over ``fov`` rad centred ahead, seeing ``max_range`` (the
-    defaults: the paper's five rays at -0.6 .. 0.6 rad, range 10); InputError if out of range."""
-    if rays < 1:
-        raise InputError(f"--rays must be at least 1, got {rays}")
-    if not (math.isfinite(fov) and 0 <= fov < 2 * math.pi) or (rays > 1 and fov == 0):
-        raise InputError(f"--fov must be in (0, 2 pi) rad, got {fov}")
-    if not (math.isfinite(max_range) and max_range > 0):
-        raise InputError(f"--range must be a positive number, got {max_range}")
-    angles = [fov * (i / (rays - 1) - 0.5) for i in range(rays)] if rays > 1 else [0.0]
-    return SensorLayout(tuple(round(a, 12) + 0.0 for a in angles), float(max_range))
+    """The layout to read from the scans: ``sim.core.spread_layout``'s (the defaults: the
+    paper's five rays at -0.6 .. 0.6 rad, range 10); InputError if out of range."""
+    return spread_layout(rays, fov, max_range)
 
 
 def summary(db: Database) -> str:
@@ -331,11 +324,8 @@ def import_bag(
     bag = Path(bag)
     if not bag.exists():
         raise InputError(f"{bag}: bag not found")
-    if len(layout.angles) != ARRAYS["sensors"]:
-        raise InputError(
-            f"--rays {len(layout.angles)}: a database holds {ARRAYS['sensors']} readings a step "
-            "for now (what the encoders read)"
-        )
+    if not 1 <= len(layout.angles) <= MAX_RAYS:
+        raise InputError(f"--rays must be 1 to {MAX_RAYS:,}, got {len(layout.angles)}")
     if rate is not None and not (math.isfinite(rate) and rate > 0):
         raise InputError(f"--rate must be a positive number of Hz, got {rate}")
     if decoder not in ("fast", "rosbags"):
