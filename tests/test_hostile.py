@@ -281,3 +281,21 @@ def test_a_world_name_too_long_to_name_files_is_refused_by_the_world_file(tmp_pa
     path.write_text(f'name = "{"w" * 300}"\nsize = 50\nwalls = []\n')
     proc = cli("generate", path, "--steps", "500")
     assert_one_line_error(proc, str(path), "1 to 100 letters")
+
+
+def test_an_analysis_cut_short_leaves_no_metrics_of_an_earlier_one(
+    square_db_path, tmp_path, monkeypatch
+):
+    from sensorimotor.analysis import analyze as analyze_mod
+
+    out = tmp_path / "a"
+    analyze_mod.analyze_files("raw", square_db_path, out, svg=False)
+    assert (out / "metrics.json").exists()
+
+    def disk_full(path, obj):
+        raise InputError(f"{path}: cannot write (no space left on the device)")
+
+    monkeypatch.setattr(analyze_mod, "write_json_atomic", disk_full)
+    with pytest.raises(InputError, match="no space left"):
+        analyze_mod.analyze_files("raw", square_db_path, out, svg=False, seed=1)
+    assert not (out / "metrics.json").exists()  # the figures alone: an analysis to redo

@@ -156,6 +156,9 @@ def analyze_files(
     source = _analyze(run, fit_db, seed) if fit_db is not None else None
     result = _analyze(run, db, seed, source)
     out = _out_dir(out)  # made only once the analysis has succeeded
+    # metrics.json, written last, marks a whole analysis: a folder that a failure (a full
+    # disk) leaves with this analysis' figures has no metrics of an earlier one beside them
+    (out / "metrics.json").unlink(missing_ok=True)
     part = db.take(SPLIT)
     files = []
     pca_title = "PCA" + (f" fitted on {_name(fit_db)}" if fit_db is not None else "")
