@@ -3,9 +3,13 @@ the cloned HMM, what it predicts and where it thinks the agent is."""
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import numpy as np
 import pytest
 
+from conftest import assert_one_line_error
 from sensorimotor.analysis.cells import (
     ACTION_NAMES,
     action_bins,
@@ -15,6 +19,11 @@ from sensorimotor.analysis.cells import (
     unigram,
 )
 from sensorimotor.analysis.chmm import fit_chmm, log_likelihood
+from sensorimotor.analysis.mapping import Steps, communities, localisation, map_files
+from sensorimotor.errors import InputError
+from sensorimotor.sim.core import SensorLayout
+from sensorimotor.sim.database import generate, save_database
+from sensorimotor.sim.world import load_world, world_from_dict
 
 RING = np.array([0, 1, 2, 0, 2, 1, 0, 1, 0, 2, 1, 2])  # 12 places, 3 aliased observations
 SLIP = 0.2  # a move fails (the agent stays) with this probability
@@ -85,3 +94,120 @@ def test_the_map_is_deterministic_given_its_seed():
     assert np.array_equal(a.T, b.T)
     c = fit_chmm(obs, actions, 3, 4, 3, seed=6)
     assert not np.array_equal(a.T, c.T)
+
+
+# ---------------------------------------------------------------------------------------------
+# Localisation on a world with known rooms
+
+
+def ring_world(rooms: bool = True):
+    """A 12 x 10 world, its west half and east half named rooms (or no rooms)."""
+    data = {"name": "ring", "size": [12, 10], "walls": []}
+    if rooms:
+        data["rooms"] = [
+            {"name": "west", "rect": [0, 0, 6, 10]},
+            {"name": "east", "rect": [6, 0, 12, 10]},
+        ]
+    return world_from_dict(data)
+
+
+def ring_steps(obs, actions, places) -> Steps:
+    """The ring's places 0..11 laid out west to east along y = 5."""
+    poses = np.stack([places + 0.5, np.full(len(places), 5.0), np.zeros(len(places))], axis=1)
+    return Steps(obs, actions, np.zeros((len(obs), 2)), poses)
+
+
+def test_the_map_localises_the_room_where_the_cell_alone_cannot():
+    """Every observation occurs in both rooms: the cell alone is little better than chance;
+    the filtered map state knows the room and the place."""
+    obs, actions, places = ring_walk(12_000)
+    train = ring_steps(obs[:10_000], actions[:10_000], places[:10_000])
+    test = ring_steps(obs[10_000:], actions[10_000:], places[10_000:])
+    model = fit_chmm(train.cells, train.actions, 3, 6, 3, seed=0)
+    loc, state_mean, _ = localisation(model, train, test, ring_world())
+    rooms, errors = loc["room_accuracy"], loc["position_error"]
+    assert rooms["cells"] < 0.7
+    assert rooms["chance"] < 0.6
+    assert rooms["map"] > 0.9
+    assert errors["map"] < 0.5 * errors["cells"]
+    assert errors["cells"] < errors["chance"] * 1.01
+    assert loc["grid_accuracy"]["map"] > loc["grid_accuracy"]["cells"] + 0.3
+    x = state_mean[model.active, 0]  # the states' place fields spread over both rooms
+    assert x.min() < 2
+    assert x.max() > 10
+    # a world without rooms: the room numbers are n/a, the rest is computed
+    loc, _, _ = localisation(model, train, test, ring_world(rooms=False))
+    assert loc["room_accuracy"] == {"map": None, "cells": None, "chance": None}
+    assert loc["position_error"]["map"] == pytest.approx(errors["map"])
+
+
+def test_communities_of_the_map_find_the_two_rooms():
+    """Two cliques joined by one weak edge: two communities."""
+    w = np.zeros((6, 6))
+    w[:3, :3] = w[3:, 3:] = 10.0
+    w[2, 3] = 1.0
+    label = communities(w, np.arange(6), seed=0)
+    assert label.tolist() == [0, 0, 0, 1, 1, 1]
+    assert communities(w, np.array([0, 1, 2]), seed=0)[3:].tolist() == [-1, -1, -1]
+
+
+# ---------------------------------------------------------------------------------------------
+# The command
+
+
+def strict_json(path: Path) -> dict:
+    def refuse(name):
+        raise ValueError(f"{name} in {path}")
+
+    return json.loads(path.read_text(), parse_constant=refuse)
+
+
+def test_cli_map_writes_strict_json_graphml_and_figures(cli, rooms1_db_path, tmp_path):
+    out = tmp_path / "map"
+    proc = cli(
+        "map", "raw", "--data", rooms1_db_path, "--out", out, "--clusters", "6", "--clones", "3"
+    )
+    assert proc.returncode == 0, proc.stderr
+    m = strict_json(out / "map.json")
+    b = m["bits_per_step"]
+    assert set(b) >= {"unigram", "markov", "cell_graph", "map"}
+    assert b["markov"] < b["unigram"]
+    assert b["map"] < b["unigram"]
+    for key in ("room_accuracy", "position_error"):
+        assert set(m["localisation"][key]) == {"map", "cells", "chance"}
+    assert m["rooms"]["names"] == ["southwest", "northwest", "east"]
+    assert -1 <= m["rooms"]["adjusted_rand"] <= 1
+    assert m["planning"]["success"] == {"map": None, "random": None}
+    assert 1 <= m["states"]["active"] <= 18
+    import networkx as nx
+
+    graph = nx.read_graphml(out / "map.graphml")
+    assert graph.number_of_nodes() == m["states"]["active"]
+    assert nx.read_graphml(out / "cell_graph.graphml").number_of_nodes() == 6
+    for png in ("place_fields.png", "map_graph.png"):
+        assert (out / png).read_bytes()[:4] == b"\x89PNG"
+    assert "bits/step" in proc.stdout
+
+
+def test_cli_map_bad_input_is_one_line_and_writes_nothing(cli, rooms1_db_path, tmp_path):
+    out = tmp_path / "o"
+    proc = cli("map", "raw", "--data", rooms1_db_path, "--out", out, "--clusters", "1")
+    assert_one_line_error(proc, "--clusters")
+    short = tmp_path / "short.npz"
+    save_database(generate(load_world("rooms1"), 150, seed=0), short)
+    proc = cli("map", "raw", "--data", short, "--out", out)
+    assert_one_line_error(proc, str(short), "split")
+    assert not out.exists()
+
+
+def test_map_refuses_bad_settings_and_other_layouts(rooms1_db_path, tmp_path):
+    with pytest.raises(InputError, match="--clones"):
+        map_files("raw", rooms1_db_path, tmp_path / "o", clones=0)
+    with pytest.raises(InputError, match="states"):
+        map_files("raw", rooms1_db_path, tmp_path / "o", clusters=100, clones=30)
+    other = tmp_path / "other.npz"
+    layout = SensorLayout(angles=(-0.5, -0.25, 0.0, 0.25, 0.5))
+    save_database(generate(load_world("rooms1"), 2_000, seed=0, layout=layout), other)
+    with pytest.raises(InputError, match="layout"):
+        map_files("raw", rooms1_db_path, tmp_path / "o", fit_data=other)
+    assert not (tmp_path / "o").exists()

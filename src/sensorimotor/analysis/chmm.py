@@ -175,6 +175,7 @@ class CloneHMM:
     active: np.ndarray  # (S,) bool: states the Viterbi path visits (the rest are pruned)
     counts: np.ndarray  # (A, S, S) the Viterbi path's transition counts on the training data
     history: dict  # log-likelihood per step (nats) after each EM / Viterbi iteration
+    T_em: np.ndarray  # (A, S, S) the transitions after EM, before Viterbi training
 
     @property
     def n_cells(self) -> int:
@@ -245,6 +246,7 @@ def fit_chmm(
         _backward_counts(T, cells, actions, C, alpha, counts)
         T = _normalise(counts, pseudocount)
     del alpha
+    T_em = T
     previous = -np.inf
     path = None
     for it in range(viterbi_iters):
@@ -265,4 +267,4 @@ def fit_chmm(
         if not active[cell * C : (cell + 1) * C].any():
             active[cell * C] = True
     T = _normalise(counts, pseudocount, active)
-    return CloneHMM(T, C, active, counts, history)
+    return CloneHMM(T, C, active, counts, history, T_em)
