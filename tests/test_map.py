@@ -18,8 +18,9 @@ from sensorimotor.analysis.cells import (
     cell_graph,
     unigram,
 )
-from sensorimotor.analysis.chmm import fit_chmm, log_likelihood
+from sensorimotor.analysis.chmm import CloneHMM, fit_chmm, log_likelihood
 from sensorimotor.analysis.mapping import Steps, communities, localisation, map_files
+from sensorimotor.analysis.planning import goal_distances
 from sensorimotor.errors import InputError
 from sensorimotor.sim.core import SensorLayout
 from sensorimotor.sim.database import generate, save_database
@@ -151,6 +152,19 @@ def test_communities_of_the_map_find_the_two_rooms():
     assert communities(w, np.array([0, 1, 2]), seed=0)[3:].tolist() == [-1, -1, -1]
 
 
+def test_goal_distances_follow_the_map_to_the_goal():
+    """A chain 0 -> 1 -> 2 -> 3 under action 1 (certain), state 4 pruned: distances 3, 2, 1, 0."""
+    T = np.zeros((2, 5, 5))
+    T[:, :, 0] = 1.0  # every other action and state: back to the start
+    T[1, [0, 1, 2], [1, 2, 3]] = 1.0
+    T[1, [0, 1, 2], 0] = 0.0
+    active = np.array([True, True, True, True, False])
+    model = CloneHMM(T, 1, active, T, {}, T)
+    d = goal_distances(model, np.array([3]))
+    assert d[:4].tolist() == pytest.approx([3, 2, 1, 0])
+    assert np.isinf(d[4])
+
+
 # ---------------------------------------------------------------------------------------------
 # The command
 
@@ -164,9 +178,8 @@ def strict_json(path: Path) -> dict:
 
 def test_cli_map_writes_strict_json_graphml_and_figures(cli, rooms1_db_path, tmp_path):
     out = tmp_path / "map"
-    proc = cli(
-        "map", "raw", "--data", rooms1_db_path, "--out", out, "--clusters", "6", "--clones", "3"
-    )
+    args = ("--data", rooms1_db_path, "--out", out, "--clusters", "6", "--clones", "3")
+    proc = cli("map", "raw", *args, "--pairs", "2")
     assert proc.returncode == 0, proc.stderr
     m = strict_json(out / "map.json")
     b = m["bits_per_step"]
@@ -177,14 +190,16 @@ def test_cli_map_writes_strict_json_graphml_and_figures(cli, rooms1_db_path, tmp
         assert set(m["localisation"][key]) == {"map", "cells", "chance"}
     assert m["rooms"]["names"] == ["southwest", "northwest", "east"]
     assert -1 <= m["rooms"]["adjusted_rand"] <= 1
-    assert m["planning"]["success"] == {"map": None, "random": None}
+    assert m["planning"]["pairs"] == 2
+    for rate in m["planning"]["success"].values():
+        assert rate in (0.0, 0.5, 1.0)
     assert 1 <= m["states"]["active"] <= 18
     import networkx as nx
 
     graph = nx.read_graphml(out / "map.graphml")
     assert graph.number_of_nodes() == m["states"]["active"]
     assert nx.read_graphml(out / "cell_graph.graphml").number_of_nodes() == 6
-    for png in ("place_fields.png", "map_graph.png"):
+    for png in ("place_fields.png", "map_graph.png", "plans.png"):
         assert (out / png).read_bytes()[:4] == b"\x89PNG"
     assert "bits/step" in proc.stdout
 

@@ -465,6 +465,7 @@ def map_cmd(
         Path | None, typer.Option(help="Fit the cells' k-means on this database (transfer).")
     ] = None,
     seed: Annotated[int, typer.Option(min=0, max=MAX_SEED, help="Seed of k-means and EM.")] = 0,
+    pairs: Annotated[int, typer.Option(help="Start/goal pairs planned in the simulator.")] = 100,
 ) -> None:
     """Learn a map from a representation's cells: the cell graph and a cloned HMM (EM, Viterbi),
     scored on the test split (bits/step, localisation, rooms); see analysis/mapping.py."""
@@ -473,7 +474,9 @@ def map_cmd(
     check_settings(clusters, clones)
     with err_console.status(f"mapping {run} on {data}") as status:
         note = lambda stage, i, ll: status.update(f"mapping: {stage} {i}, {ll:.4f} nats/step")  # noqa: E731
-        result = map_files(run, data, out, clusters, clones, fit_data, seed, progress=note)
+        result = map_files(
+            run, data, out, clusters, clones, fit_data, seed, pairs=pairs, progress=note
+        )
     print("\n".join(summary_lines(result.metrics)))
     err_console.print("wrote " + ", ".join(str(p) for p in result.files), soft_wrap=True)
 

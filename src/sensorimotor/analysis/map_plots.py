@@ -80,3 +80,20 @@ def plot_map_graph(
     )
     ax.set_title(f"{title}, {int(community.max()) + 1} communities")
     return ax
+
+
+def plot_plans(world: World, traces: list, radius: float, title: str) -> Figure:
+    """One panel per planned episode: its trajectory, start (circle) and goal (its disc)."""
+    n = max(1, len(traces))
+    aspect = world_aspect([world])
+    fig = Figure(figsize=(n * PANEL_SIZE, PANEL_SIZE * aspect + 0.5), layout="constrained")
+    axes = fig.subplots(1, n, squeeze=False)[0]
+    for ax, (path, goal, steps) in zip(axes, traces, strict=False):
+        plot_world(world, ax)
+        ax.add_patch(mpl.patches.Circle(goal, radius, color="tab:green", alpha=0.3, lw=0))
+        ax.plot(path[:, 0], path[:, 1], color="tab:blue", lw=0.8)
+        ax.plot(*path[0], "o", color="tab:blue", ms=5)
+        done = f"goal in {steps} steps" if steps is not None else "goal not reached"
+        ax.set_title(f"{done}", fontsize="small")
+    fig.suptitle(title)
+    return fig

@@ -18,7 +18,8 @@ cloned HMM (``chmm.fit_chmm``). On the test split:
   (Viterbi counts, both directions, all actions) and of the cell graph; adjusted Rand index of
   the community of each test step (its most probable state) against its room.
 
-Planning in the simulator is not implemented yet: ``planning.success`` is null.
+- **planning** in the simulator (``planning.planning``): success rate of the map's planner
+  and of the paper's random behaviour over ``pairs`` start/goal pairs (null with 0 pairs).
 """
 
 from __future__ import annotations
@@ -49,6 +50,7 @@ from sensorimotor.analysis.chmm import (
     log_likelihood,
 )
 from sensorimotor.analysis.clusters import N_CLUSTERS, assign_clusters, fit_kmeans
+from sensorimotor.analysis.planning import GOAL_RADIUS, N_PAIRS, encoder_of, planning
 from sensorimotor.errors import InputError
 from sensorimotor.files import atomic_path, check_writable, write_text_atomic
 from sensorimotor.sim.database import Database, load_database
@@ -61,7 +63,10 @@ MAX_CLONES = 100
 MAX_STATES = 2_000  # K C: T is (A, S, S) float64, several copies held while fitting
 GRID = 10  # the position ground truth: a GRID x GRID partition of the world
 PRIOR = 1e-3  # weight of a state's cell's labels added to the state's own (unvisited states)
-OUTPUTS = ("map.json", "map.graphml", "cell_graph.graphml", "place_fields.png", "map_graph.png")
+OUTPUTS = (
+    *("map.json", "map.graphml", "cell_graph.graphml"),
+    *("place_fields.png", "map_graph.png", "plans.png"),
+)
 
 
 @dataclass(frozen=True)
@@ -96,7 +101,7 @@ def _check_length(db: Database, split: str, k: int) -> None:
 
 
 def cell_steps(run, db: Database, k: int, seed: int, fit_db: Database | None = None):
-    """(train Steps, test Steps) of ``db``: k-means (k = ``k``) fitted on the training split of
+    """(train Steps, test Steps, the k-means) of ``db``: k-means (k = ``k``) fitted on the training split of
     ``fit_db`` (or of ``db``), applied to both splits of ``db``."""
     for d, split in ((db, "train"), (db, "test"), (fit_db, "train")):
         if d is not None:
@@ -110,7 +115,7 @@ def cell_steps(run, db: Database, k: int, seed: int, fit_db: Database | None = N
         motors = np.asarray(part.motors, dtype=np.float64)
         poses = np.asarray(part.poses, dtype=np.float64)
         out.append(Steps(assign_clusters(kmeans, z), action_bins(motors), motors, poses))
-    return out[0], out[1]
+    return out[0], out[1], kmeans
 
 
 # --------------------------------------------------------------------------------------------
@@ -364,11 +369,12 @@ def map_files(
     fit_data: str | Path | None = None,
     seed: int = 0,
     em_iters: int = EM_ITERS,
+    pairs: int = N_PAIRS,
     progress=None,
 ) -> MapResult:
     """Build the map of ``run``'s representation (``"raw"`` or a run folder) of ``data`` and
     write ``map.json``, the GraphML files and the figures into ``out`` (module docstring)."""
-    from sensorimotor.analysis.map_plots import plot_map_graph, plot_place_fields
+    from sensorimotor.analysis.map_plots import plot_map_graph, plot_place_fields, plot_plans
     from sensorimotor.sim.plots import save_figure
 
     check_settings(clusters, clones)
@@ -388,7 +394,9 @@ def map_files(
         raise InputError(f"{out}: is a file, not an output folder")
     for target in OUTPUTS if out.is_dir() else []:
         check_writable(out / target)
-    train, test = cell_steps(run, db, clusters, seed, fit_db)
+    if pairs < 0:
+        raise InputError(f"--pairs must be at least 0, got {pairs}")
+    train, test, kmeans = cell_steps(run, db, clusters, seed, fit_db)
     world = db.world
     graph = cell_graph(train.cells, train.actions, train.motors, clusters)
     model = fit_chmm(
@@ -400,6 +408,12 @@ def map_files(
         bits[name] /= math.log(2)
     loc, state_mean, occupancy = localisation(model, train, test, world)
     rooms, comm = rooms_from_graph(model, graph, test, world, seed)
+    plans, traces = {"success": {"map": None, "random": None}, "pairs": 0}, []
+    if pairs:
+        encoder = encoder_of(run, db.max_range)
+        plans, traces = planning(
+            world, db.layout, encoder, kmeans, model, state_mean, occupancy, seed, pairs
+        )
     metrics = {
         "run": RAW if run == RAW else str(run.path),
         "model": RAW if run == RAW else run.kind,
@@ -432,10 +446,7 @@ def map_files(
         },
         "localisation": loc,
         "rooms": rooms,
-        "planning": {
-            "success": {"map": None, "random": None},
-            "note": "not implemented yet",
-        },
+        "planning": plans,
     }
     metrics = _strict(metrics)
     the_map, the_cells = map_graphs(model, graph, state_mean, occupancy, comm, world)
@@ -455,14 +466,21 @@ def map_files(
         occupancy,
         f"{metrics['model']} on {world.name}: {int(model.active.sum())} states",
     )
+    figures = {"place_fields.png": place, "map_graph.png": drawn.figure}
+    if traces:
+        figures["plans.png"] = plot_plans(
+            world, traces, GOAL_RADIUS, f"{metrics['model']} on {world.name}: the map plans"
+        )
     out.mkdir(parents=True, exist_ok=True)
     files = []
     for name, g in (("map.graphml", the_map), ("cell_graph.graphml", the_cells)):
         with atomic_path(out / name, ".graphml") as tmp:
             nx.write_graphml(g, tmp)
         files.append(out / name)
-    files += save_figure(place, out / "place_fields.png")
-    files += save_figure(drawn.figure, out / "map_graph.png")
+    for name, fig in figures.items():
+        files += save_figure(fig, out / name)
+    for stale in set(OUTPUTS) - {f.name for f in files} - {"map.json"}:
+        (out / stale).unlink(missing_ok=True)  # an earlier map's, in this folder
     path = out / "map.json"
     write_text_atomic(path, json.dumps(metrics, indent=2, allow_nan=False) + "\n")
     files.append(path)
@@ -487,4 +505,6 @@ def summary_lines(m: dict) -> list[str]:
         f"chance {_fmt(pe['chance'], '.2f')}",
         f"  rooms from the graph: adjusted Rand {_fmt(r['adjusted_rand'])} (map), "
         f"{_fmt(r['adjusted_rand_cells'])} (cells)",
+        f"  planning success: map {_fmt(m['planning']['success']['map'], '.2f')}, random "
+        f"{_fmt(m['planning']['success']['random'], '.2f')} ({m['planning']['pairs']} pairs)",
     ]
