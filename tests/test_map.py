@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import reference_chmm as reference
 from conftest import assert_one_line_error
 from sensorimotor.analysis.cells import (
     ACTION_NAMES,
@@ -18,7 +19,13 @@ from sensorimotor.analysis.cells import (
     cell_graph,
     unigram,
 )
-from sensorimotor.analysis.chmm import CloneHMM, fit_chmm, log_likelihood
+from sensorimotor.analysis.chmm import (
+    CloneHMM,
+    _backward_counts,
+    _forward,
+    fit_chmm,
+    log_likelihood,
+)
 from sensorimotor.analysis.mapping import Steps, communities, localisation, map_files
 from sensorimotor.analysis.planning import goal_distances
 from sensorimotor.errors import InputError
@@ -87,6 +94,24 @@ def test_the_map_recovers_an_aliased_ring():
     assert base["markov"] > truth + 0.4  # the observations alone do not say where one is
     assert nats / np.log(2) < truth + 0.1
     assert 12 <= model.active.sum() <= 18  # about one active state per place
+
+
+def test_the_clone_kernels_match_a_plain_hmm_over_every_state():
+    """The numba forward and expected counts, which only ever touch the clones of the observed
+    cells, equal the textbook forward-backward over all states with a 0/1 emission matrix."""
+    rng = np.random.default_rng(0)
+    K, C, A, n = 3, 4, 2, 60
+    T = rng.random((A, K * C, K * C))
+    T /= T.sum(axis=2, keepdims=True)
+    cells, actions = rng.integers(0, K, n), rng.integers(0, A, n)
+    logp, counts = reference.forward_backward(T, cells, actions, C)
+    assert log_likelihood(T, cells, actions, C)[1:] == pytest.approx(logp, rel=1e-10)
+    alpha = np.empty((n, C))
+    _forward(T, cells, actions, C, alpha)
+    mine = np.zeros_like(T)
+    _backward_counts(T, cells, actions, C, alpha, mine)
+    assert mine == pytest.approx(counts, abs=1e-10)
+    assert mine.sum() == pytest.approx(n - 1)
 
 
 def test_the_map_is_deterministic_given_its_seed():

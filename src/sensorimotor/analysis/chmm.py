@@ -87,29 +87,30 @@ def _backward_counts(T, cells, actions, C, alpha, counts):
     n = cells.shape[0]
     beta = np.full(C, 1.0 / C)
     new = np.empty(C)
-    xi = np.empty((C, C))
+    tb = np.empty((C, C))
     for t in range(n - 2, -1, -1):
         i0 = cells[t] * C
         j0 = cells[t + 1] * C
         a = actions[t]
         total = 0.0
-        for i in range(C):
-            ai = alpha[t, i]
-            for j in range(C):
-                v = ai * T[a, i0 + i, j0 + j] * beta[j]
-                xi[i, j] = v
-                total += v
-        if total > 0.0:
-            for i in range(C):
-                for j in range(C):
-                    counts[a, i0 + i, j0 + j] += xi[i, j] / total
         norm = 0.0
-        for i in range(C):
+        for i in range(C):  # tb = T beta, once: both xi = alpha tb and the new beta use it
             s = 0.0
             for j in range(C):
-                s += T[a, i0 + i, j0 + j] * beta[j]
+                v = T[a, i0 + i, j0 + j] * beta[j]
+                tb[i, j] = v
+                s += v
             new[i] = s
             norm += s
+            total += alpha[t, i] * s
+        if total > 0.0:
+            inv = 1.0 / total
+            for i in range(C):
+                w = alpha[t, i] * inv
+                if w == 0.0:
+                    continue
+                for j in range(C):
+                    counts[a, i0 + i, j0 + j] += w * tb[i, j]
         for i in range(C):
             beta[i] = new[i] / norm if norm > 0.0 else 1.0 / C
 
