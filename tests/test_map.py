@@ -11,6 +11,7 @@ import pytest
 
 import reference_chmm as reference
 from conftest import assert_one_line_error
+from sensorimotor.analysis.analyze import representation_of
 from sensorimotor.analysis.cells import (
     ACTION_NAMES,
     action_bins,
@@ -26,11 +27,18 @@ from sensorimotor.analysis.chmm import (
     fit_chmm,
     log_likelihood,
 )
-from sensorimotor.analysis.mapping import Steps, communities, localisation, map_files
+from sensorimotor.analysis.clusters import assign_clusters, fit_kmeans
+from sensorimotor.analysis.mapping import (
+    Steps,
+    cell_steps,
+    communities,
+    localisation,
+    map_files,
+)
 from sensorimotor.analysis.planning import goal_distances
 from sensorimotor.errors import InputError
 from sensorimotor.sim.core import SensorLayout
-from sensorimotor.sim.database import generate, save_database
+from sensorimotor.sim.database import generate, load_database, save_database
 from sensorimotor.sim.world import load_world, world_from_dict
 
 RING = np.array([0, 1, 2, 0, 2, 1, 0, 1, 0, 2, 1, 2])  # 12 places, 3 aliased observations
@@ -238,6 +246,18 @@ def test_cli_map_bad_input_is_one_line_and_writes_nothing(cli, rooms1_db_path, t
     proc = cli("map", "raw", "--data", short, "--out", out)
     assert_one_line_error(proc, str(short), "split")
     assert not out.exists()
+
+
+def test_transfer_takes_the_cells_of_another_world(rooms1_db_path, square_db_path):
+    """--fit-data: the k-means is fitted on the other database's training split and assigns
+    this database's steps; the map itself is learned on this database."""
+    rooms1, square = load_database(rooms1_db_path), load_database(square_db_path)
+    train, test, kmeans = cell_steps("raw", rooms1, 5, 0, fit_db=square)
+    own = fit_kmeans(representation_of("raw", square, "train"), 5, 0)
+    assert np.array_equal(kmeans.cluster_centers_, own.cluster_centers_)
+    z = representation_of("raw", rooms1, "test")
+    assert np.array_equal(test.cells, assign_clusters(own, z))
+    assert len(train.cells) == len(rooms1.take("train"))
 
 
 def test_map_refuses_bad_settings_and_other_layouts(rooms1_db_path, tmp_path):
