@@ -126,6 +126,7 @@ def run_episode(
     far = np.where(np.isnan(far), np.nanmax(far) + 10.0 if np.isfinite(far).any() else 0.0, far)
     x, y, heading = start
     encode = encoder() if use_map else None
+    centres = kmeans.cluster_centers_  # (K, D): the nearest is the cell (KMeans.predict)
     alpha = cell = action = None
     for t in range(budget + 1):
         if trace is not None:
@@ -139,7 +140,7 @@ def run_episode(
             d, r = behaviour(readings.min(), rng.random(), rng.random())
             x, y, heading = apply_motor(x, y, heading, d, r)
             continue
-        new_cell = int(kmeans.predict(encode(readings)[None, :])[0])
+        new_cell = int(np.argmin(((centres - encode(readings)) ** 2).sum(axis=1)))
         if alpha is None:
             alpha = np.full(C, 1.0 / C)
         else:
