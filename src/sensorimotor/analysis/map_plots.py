@@ -40,7 +40,8 @@ def plot_place_fields(
         ax.set_yticks([])
         where = np.flatnonzero(states == s)
         where = where[:: max(1, len(where) // MAX_DOTS)]
-        ax.scatter(poses[where, 0], poses[where, 1], s=1, color="tab:red", alpha=0.3, lw=0)
+        dot = 1 if len(where) > 1_000 else 4  # sparse fields in bigger dots, to be seen
+        ax.scatter(poses[where, 0], poses[where, 1], s=dot, color="tab:red", alpha=0.4, lw=0)
         ax.set_title(f"state {s}: {len(np.flatnonzero(states == s)):,} steps", fontsize="small")
     fig.suptitle(f"{title}: place fields of the {len(top)} most occupied states (test split)")
     return fig

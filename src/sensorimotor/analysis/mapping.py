@@ -450,13 +450,9 @@ def map_files(
     }
     metrics = _strict(metrics)
     the_map, the_cells = map_graphs(model, graph, state_mean, occupancy, comm, world)
-    place = plot_place_fields(
-        world,
-        test.poses,
-        test.cells * clones + filtered(model, test.cells, test.actions).argmax(axis=1),
-        occupancy,
-        f"{metrics['model']} on {world.name}",
-    )
+    best = test.cells * clones + filtered(model, test.cells, test.actions).argmax(axis=1)
+    seen = np.bincount(best, minlength=model.n_states).astype(np.float64)  # test occupancy
+    place = plot_place_fields(world, test.poses, best, seen, f"{metrics['model']} on {world.name}")
     drawn = plot_map_graph(
         world,
         state_mean,
