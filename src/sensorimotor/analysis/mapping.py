@@ -16,10 +16,11 @@ cloned HMM (``chmm.fit_chmm``). On the test split:
   rooms; otherwise they are null ("n/a");
 - **rooms from the graph**: Louvain communities (networkx) of the map's transition graph
   (Viterbi counts, both directions, all actions) and of the cell graph; adjusted Rand index of
-  the community of each test step (its most probable state) against its room.
-
+  the community of each test step (its most probable state) against its room;
 - **planning** in the simulator (``planning.planning``): success rate of the map's planner
   and of the paper's random behaviour over ``pairs`` start/goal pairs (null with 0 pairs).
+
+One representation (one run) per call: the mean and sd over seeds are left to the caller.
 """
 
 from __future__ import annotations
