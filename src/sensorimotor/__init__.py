@@ -45,6 +45,7 @@ _API = {
     "evaluate_run": "sensorimotor.learn.evaluate",
     "representation": "sensorimotor.learn.evaluate",
     "analyze_files": "sensorimotor.analysis.analyze",
+    "map_files": "sensorimotor.analysis.mapping",
     "reproduce": "sensorimotor.report.reproduce",
 }
 

@@ -1,0 +1,100 @@
+"""Figures of the map: the place fields of its states and its graph laid over the walls."""
+
+from __future__ import annotations
+
+import matplotlib as mpl
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+
+from sensorimotor.sim.plots import PANEL_SIZE, plot_world, world_aspect
+from sensorimotor.sim.world import World
+
+N_FIELDS = 24  # place fields drawn: the most occupied states
+MAX_DOTS = 4_000  # positions drawn per field (evenly thinned)
+
+
+def plot_place_fields(
+    world: World,
+    poses: np.ndarray,
+    states: np.ndarray,
+    occupancy: np.ndarray,
+    title: str,
+    n: int = N_FIELDS,
+) -> Figure:
+    """The positions (``poses`` (N, 3)) of the steps whose most probable state (``states``
+    (N,)) is each of the ``n`` states with the largest ``occupancy`` (S,): one panel each."""
+    top = [int(s) for s in np.argsort(-occupancy, kind="stable")[:n] if occupancy[s] > 0]
+    cols = 6
+    rows = max(1, -(-len(top) // cols))
+    aspect = world_aspect([world])
+    fig = Figure(figsize=(cols * PANEL_SIZE * 0.6, rows * PANEL_SIZE * 0.6 * aspect + 0.6))
+    fig.set_layout_engine("constrained")
+    axes = fig.subplots(rows, cols, squeeze=False)
+    for ax in axes.ravel():
+        ax.set_axis_off()
+    for ax, s in zip(axes.ravel(), top, strict=False):
+        plot_world(world, ax)
+        ax.set_axis_on()
+        ax.set_xticks([])
+        ax.set_yticks([])
+        where = np.flatnonzero(states == s)
+        where = where[:: max(1, len(where) // MAX_DOTS)]
+        dot = 1 if len(where) > 1_000 else 4  # sparse fields in bigger dots, to be seen
+        ax.scatter(poses[where, 0], poses[where, 1], s=dot, color="tab:red", alpha=0.4, lw=0)
+        ax.set_title(f"state {s}: {len(np.flatnonzero(states == s)):,} steps", fontsize="small")
+    fig.suptitle(f"{title}: place fields of the {len(top)} most occupied states (test split)")
+    return fig
+
+
+def plot_map_graph(
+    world: World,
+    positions: np.ndarray,
+    weights: np.ndarray,
+    active: np.ndarray,
+    community: np.ndarray,
+    occupancy: np.ndarray,
+    title: str,
+    ax: Axes | None = None,
+) -> Axes:
+    """The map's states at their mean positions (S, 2) over the walls, coloured by community,
+    sized by occupancy; an edge for each pair of states with transitions (``weights`` (S, S),
+    both directions summed), darker the more often it is taken."""
+    if ax is None:
+        ax = Figure(figsize=(6.5, 6.5 * world_aspect([world])), layout="constrained").add_subplot()
+    plot_world(world, ax)
+    w = weights + weights.T
+    np.fill_diagonal(w, 0)
+    i, j = np.nonzero(np.triu(w))
+    if len(i):
+        strength = np.log1p(w[i, j]) / np.log1p(w[i, j].max())
+        segments = np.stack([positions[i], positions[j]], axis=1)  # (E, 2, 2)
+        lines = mpl.collections.LineCollection(
+            segments, colors=[(0.2, 0.2, 0.2, 0.05 + 0.6 * a) for a in strength], lw=0.6, zorder=1
+        )
+        ax.add_collection(lines)
+    s = np.flatnonzero(active)
+    colours = mpl.colormaps["tab20"](community[s] % 20)
+    size = 8 + 60 * occupancy[s] / max(occupancy[s].max(), 1e-12)
+    ax.scatter(
+        positions[s, 0], positions[s, 1], s=size, c=colours, edgecolors="k", lw=0.3, zorder=2
+    )
+    ax.set_title(f"{title}, {int(community.max()) + 1} communities")
+    return ax
+
+
+def plot_plans(world: World, traces: list, radius: float, title: str) -> Figure:
+    """One panel per planned episode: its trajectory, start (circle) and goal (its disc)."""
+    n = max(1, len(traces))
+    aspect = world_aspect([world])
+    fig = Figure(figsize=(n * PANEL_SIZE, PANEL_SIZE * aspect + 0.5), layout="constrained")
+    axes = fig.subplots(1, n, squeeze=False)[0]
+    for ax, (path, goal, steps) in zip(axes, traces, strict=False):
+        plot_world(world, ax)
+        ax.add_patch(mpl.patches.Circle(goal, radius, color="tab:green", alpha=0.3, lw=0))
+        ax.plot(path[:, 0], path[:, 1], color="tab:blue", lw=0.8)
+        ax.plot(*path[0], "o", color="tab:blue", ms=5)
+        done = f"goal in {steps} steps" if steps is not None else "goal not reached"
+        ax.set_title(f"{done}", fontsize="small")
+    fig.suptitle(title)
+    return fig

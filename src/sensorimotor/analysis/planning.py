@@ -1,0 +1,212 @@
+"""Planning with the map, in the simulator, with the real sensors and the frozen encoder.
+
+An episode: a random start pose and a random goal position (both ``sim.core.sample_start``,
+whatever the map); the goal is reached when the agent's true position comes within
+``GOAL_RADIUS`` of it. The map aims at its goal states (``goal_states``: the well-visited states
+whose mean position, their place field's centre on the training split, lies near the goal). At
+every step the agent reads its lasers (``sim.core.read_sensors``), encodes the readings (the
+raw readings / range, or the run's ``encode``, recurrent state carried), takes the cell
+(k-means), updates the map's filter, and acts:
+
+- the wall-avoidance reflex of the paper's behaviour is kept: a reading below 1 forces the
+  turn-around (the agent never crosses a wall, and the map only knows the turn in that case);
+- otherwise it takes the moving action (right, straight, left) whose expected distance to the
+  goal after one step is the smallest: ``sum_s alpha(s) sum_s' T[a, s, s'] D(s')``, with
+  ``D`` the shortest-path distance to the goal states in the map's graph (edge cost
+  ``1 - log max_a T[a, s, s']``, Dijkstra): the plan is re-made from the filter at each step;
+- an action is executed as a command drawn from the behaviour's own range for that bin
+  (``d ~ U(0, 1)``, ``r`` uniform in the bin), so the map's statistics hold.
+
+The baseline is the paper's random behaviour (``sim.core.behaviour``) for the same budget from
+the same start; success rate = the fraction of episodes that reach their goal.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sensorimotor.analysis.cells import STRAIGHT
+from sensorimotor.analysis.chmm import CloneHMM
+from sensorimotor.sim.core import (
+    TURN_THRESHOLD,
+    SensorLayout,
+    apply_motor,
+    behaviour,
+    read_sensors,
+    sample_start,
+)
+from sensorimotor.sim.world import World
+
+N_PAIRS = 100  # start/goal pairs
+BUDGET = 400  # steps an episode may take
+GOAL_RADIUS = 4.0
+N_TRACES = 2  # episodes of the map whose trajectories are kept (the figure)  # units from the goal state's mean position
+MOVING = (1, 2, 3)  # right, straight, left (cells.ACTION_NAMES)
+R_RANGE = {1: (-math.pi / 6, -STRAIGHT), 2: (-STRAIGHT, STRAIGHT), 3: (STRAIGHT, math.pi / 6)}
+
+
+def goal_distances(model: CloneHMM, goals: np.ndarray) -> np.ndarray:
+    """(S,) cost of the best path from each state to the nearest of the ``goals`` states (inf
+    where none): Dijkstra on edge costs ``1 - log max_a T[a, s, s']`` (a step, plus its
+    surprise), between active states only."""
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import dijkstra
+
+    best = model.T.max(axis=0) * np.outer(model.active, model.active)  # (S, S)
+    np.fill_diagonal(best, 0.0)
+    best[best < 1e-6] = 0.0  # the pseudocount is not an edge
+    cost = np.where(best > 0, 1.0 - np.log(np.where(best > 0, best, 1.0)), 0.0)
+    reverse = csr_matrix(cost.T)  # paths to the goals
+    return dijkstra(reverse, directed=True, indices=np.asarray(goals), min_only=True)
+
+
+def goal_states(
+    model: CloneHMM, state_mean: np.ndarray, occupancy: np.ndarray, goal_xy: np.ndarray
+) -> np.ndarray:
+    """The map's states for a goal position: the well-visited active states (occupancy at least
+    the median) whose mean position lies within GOAL_RADIUS of it, or the nearest such one."""
+    active = np.flatnonzero(model.active)
+    candidates = active[occupancy[active] >= np.median(occupancy[active])]
+    dist = np.hypot(*(state_mean[candidates] - goal_xy).T)
+    near = candidates[dist <= GOAL_RADIUS]
+    return near if len(near) else candidates[[int(np.argmin(dist))]]
+
+
+def encoder_of(run, max_range: float):
+    """A factory of online encoders: ``encoder_of(run, r)()`` is a function from one reading
+    (R,) to its representation (D,), carrying a recurrent model's state from one call to the
+    next (``run`` is ``"raw"``: the readings / range, or a loaded ``evaluate.Run``)."""
+    if isinstance(run, str):
+        return lambda: lambda readings: np.asarray(readings, dtype=np.float64) / max_range
+    import torch
+
+    from sensorimotor.sim.database import scale_sensors
+
+    def fresh():
+        state = None
+
+        @torch.no_grad()
+        def encode(readings: np.ndarray) -> np.ndarray:
+            nonlocal state
+            s = torch.from_numpy(scale_sensors(readings[None], max_range))[None]  # (1, 1, R)
+            z, state = run.model.encode(s, state)  # (1, 1, D)
+            return z[0, 0].numpy().astype(np.float64)
+
+        return encode
+
+    return fresh
+
+
+def _command(action: int, rng: np.random.Generator) -> tuple[float, float]:
+    lo, hi = R_RANGE[action]
+    return float(rng.random()), float(lo + (hi - lo) * rng.random())
+
+
+def run_episode(
+    world: World,
+    layout: SensorLayout,
+    encoder,
+    kmeans,
+    model: CloneHMM,
+    distances: np.ndarray,
+    goal_xy: np.ndarray,
+    start: tuple[float, float, float],
+    rng: np.random.Generator,
+    budget: int = BUDGET,
+    use_map: bool = True,
+    trace: list | None = None,
+) -> int | None:
+    """Steps to the goal (None if not reached within ``budget``) from ``start``; with
+    ``use_map`` the map's planner acts, otherwise the paper's random behaviour. The positions
+    visited are appended to ``trace`` if given."""
+    C = model.n_clones
+    far = np.where(np.isfinite(distances), distances, np.nan)
+    far = np.where(np.isnan(far), np.nanmax(far) + 10.0 if np.isfinite(far).any() else 0.0, far)
+    x, y, heading = start
+    encode = encoder() if use_map else None
+    centres = kmeans.cluster_centers_  # (K, D): the nearest is the cell (KMeans.predict)
+    alpha = cell = action = None
+    for t in range(budget + 1):
+        if trace is not None:
+            trace.append((x, y))
+        if math.hypot(x - goal_xy[0], y - goal_xy[1]) <= GOAL_RADIUS:
+            return t
+        if t == budget:
+            return None
+        readings = read_sensors(world, np.array([x, y, heading]), layout)[0]
+        if not use_map:
+            d, r = behaviour(readings.min(), rng.random(), rng.random())
+            x, y, heading = apply_motor(x, y, heading, d, r)
+            continue
+        new_cell = int(np.argmin(((centres - encode(readings)) ** 2).sum(axis=1)))
+        if alpha is None:
+            alpha = np.full(C, 1.0 / C)
+        else:
+            block = model.T[action, cell * C : (cell + 1) * C, new_cell * C : (new_cell + 1) * C]
+            alpha = alpha @ block
+            alpha = alpha / alpha.sum() if alpha.sum() > 0 else np.full(C, 1.0 / C)
+        cell = new_cell
+        if readings.min() < TURN_THRESHOLD:
+            action = 0
+            d, r = behaviour(readings.min(), rng.random(), rng.random())
+        else:
+            rows = model.T[list(MOVING), cell * C : (cell + 1) * C, :]  # (3, C, S)
+            expected = np.einsum("c,acs,s->a", alpha, rows, far)
+            action = MOVING[int(np.argmin(expected + 1e-9 * rng.random(3)))]
+            d, r = _command(action, rng)
+        x, y, heading = apply_motor(x, y, heading, d, r)
+    return None
+
+
+def planning(
+    world: World,
+    layout: SensorLayout,
+    encoder,
+    kmeans,
+    model: CloneHMM,
+    state_mean: np.ndarray,
+    occupancy: np.ndarray,
+    seed: int = 0,
+    n_pairs: int = N_PAIRS,
+    budget: int = BUDGET,
+) -> tuple[dict, list]:
+    """Success rates of the map's planner and of the random behaviour over ``n_pairs``
+    start/goal pairs (module docstring), and the first N_TRACES of the map's episodes as
+    (positions (n, 2), goal (2,), steps or None). ``encoder()`` returns a fresh function from
+    one reading (R,) to its representation (D,)."""
+    rng = np.random.default_rng(seed)
+    reached = {"map": [], "random": []}
+    traces = []
+    for pair in range(n_pairs):
+        goal_xy = np.array(sample_start(world, rng)[:2])  # a free position
+        start = sample_start(world, rng)
+        trace: list = []
+        distances = goal_distances(model, goal_states(model, state_mean, occupancy, goal_xy))
+        seeds = rng.integers(0, 2**32, 2)
+        for name, seed_ in zip(("map", "random"), seeds, strict=True):
+            steps = run_episode(
+                world,
+                layout,
+                encoder,
+                kmeans,
+                model,
+                distances,
+                goal_xy,
+                start,
+                np.random.default_rng(seed_),
+                budget,
+                use_map=name == "map",
+                trace=trace if name == "map" and pair < N_TRACES else None,
+            )
+            reached[name].append(steps)
+        if pair < N_TRACES:
+            traces.append((np.array(trace), goal_xy, reached["map"][-1]))
+    out = {"success": {}, "median_steps": {}, "pairs": n_pairs, "budget": budget}
+    for name, steps in reached.items():
+        done = [s for s in steps if s is not None]
+        out["success"][name] = len(done) / n_pairs
+        out["median_steps"][name] = float(np.median(done)) if done else None
+    out["goal_radius"] = GOAL_RADIUS
+    return out, traces

@@ -1,0 +1,273 @@
+"""The map (``analysis.cells``, ``analysis.chmm``, ``analysis.mapping``): cells, the cell graph,
+the cloned HMM, what it predicts and where it thinks the agent is."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import reference_chmm as reference
+from conftest import assert_one_line_error
+from sensorimotor.analysis.analyze import representation_of
+from sensorimotor.analysis.cells import (
+    ACTION_NAMES,
+    action_bins,
+    baseline_bits,
+    bits,
+    cell_graph,
+    unigram,
+)
+from sensorimotor.analysis.chmm import (
+    CloneHMM,
+    _backward_counts,
+    _forward,
+    fit_chmm,
+    log_likelihood,
+)
+from sensorimotor.analysis.clusters import assign_clusters, fit_kmeans
+from sensorimotor.analysis.mapping import (
+    Steps,
+    cell_steps,
+    communities,
+    localisation,
+    map_files,
+)
+from sensorimotor.analysis.planning import goal_distances
+from sensorimotor.errors import InputError
+from sensorimotor.sim.core import SensorLayout
+from sensorimotor.sim.database import generate, load_database, save_database
+from sensorimotor.sim.world import load_world, world_from_dict
+
+RING = np.array([0, 1, 2, 0, 2, 1, 0, 1, 0, 2, 1, 2])  # 12 places, 3 aliased observations
+SLIP = 0.2  # a move fails (the agent stays) with this probability
+
+
+def ring_walk(n: int, seed: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A walk on RING: actions 0 (forward), 1 (back), 2 (stay); (observations, actions, places)."""
+    rng = np.random.default_rng(seed)
+    actions = rng.integers(0, 3, n)
+    slips = rng.random(n) < SLIP
+    places = np.zeros(n, dtype=np.int64)
+    for t in range(1, n):
+        step = 0 if slips[t - 1] else (1, -1, 0)[actions[t - 1]]
+        places[t] = (places[t - 1] + step) % len(RING)
+    return RING[places], actions, places
+
+
+def test_actions_bin_the_behaviour_and_the_turn_around_is_its_own():
+    r = np.array([np.pi, -np.pi + 0.1, -0.5, -0.1, 0.0, 0.1, 0.5])
+    motors = np.stack([np.zeros_like(r), r], axis=1)
+    names = [ACTION_NAMES[a] for a in action_bins(motors)]
+    assert names == ["turn", "turn", "right", "straight", "straight", "straight", "left"]
+
+
+def test_unigram_bits_are_the_entropy_by_hand():
+    cells = np.array([0, 0, 0, 1, 1, 2, 0, 1])
+    p = unigram(cells, 3, alpha=0.0)
+    freq = np.bincount(cells[1:], minlength=3) / 7  # the predicted steps
+    by_hand = -(freq * np.log2(p)).sum()
+    assert bits(p[cells[1:]]) == pytest.approx(by_hand)
+    assert p.tolist() == pytest.approx([4 / 8, 3 / 8, 1 / 8])
+
+
+def test_cell_graph_counts_edges_and_their_motor_statistics():
+    cells = np.array([0, 1, 0, 1, 2])
+    actions = np.array([2, 2, 2, 0, 0])
+    motors = np.array([[0.2, 0.0], [0.4, 0.0], [0.6, 0.0], [0.0, 3.1], [0.0, 3.0]])
+    g = cell_graph(cells, actions, motors, 3)
+    assert g.counts.sum() == 4
+    assert g.counts[2, 0, 1] == 2  # 0 -straight-> 1 twice, with d = 0.2 and 0.6
+    assert g.motor_mean[2, 0, 1, 0] == pytest.approx(0.4)
+    assert g.motor_sd[2, 0, 1, 0] == pytest.approx(np.std([0.2, 0.6], ddof=1))
+    assert {(e["source"], e["action"], e["target"]) for e in g.edges()} == {
+        (0, "straight", 1),
+        (1, "straight", 0),
+        (1, "turn", 2),
+    }
+
+
+def test_the_map_recovers_an_aliased_ring():
+    """Three observations on twelve places: the first-order Markov model cannot tell the places
+    apart; the cloned HMM finds them and predicts near the true entropy rate (a move slips with
+    probability 0.2, staying is certain)."""
+    obs, actions, _ = ring_walk(12_000)
+    train, test = slice(0, 10_000), slice(10_000, None)
+    base = baseline_bits(obs[train], actions[train], obs[test], actions[test], 3, 3)
+    model = fit_chmm(obs[train], actions[train], 3, 6, 3, seed=0)
+    nats = -log_likelihood(model.T, obs[test], actions[test], 6)[1:].mean()
+    truth = 2 / 3 * -(SLIP * np.log2(SLIP) + (1 - SLIP) * np.log2(1 - SLIP))
+    assert base["markov"] > truth + 0.4  # the observations alone do not say where one is
+    assert nats / np.log(2) < truth + 0.1
+    assert 12 <= model.active.sum() <= 18  # about one active state per place
+
+
+def test_the_clone_kernels_match_a_plain_hmm_over_every_state():
+    """The numba forward and expected counts, which only ever touch the clones of the observed
+    cells, equal the textbook forward-backward over all states with a 0/1 emission matrix."""
+    rng = np.random.default_rng(0)
+    K, C, A, n = 3, 4, 2, 60
+    T = rng.random((A, K * C, K * C))
+    T /= T.sum(axis=2, keepdims=True)
+    cells, actions = rng.integers(0, K, n), rng.integers(0, A, n)
+    logp, counts = reference.forward_backward(T, cells, actions, C)
+    assert log_likelihood(T, cells, actions, C)[1:] == pytest.approx(logp, rel=1e-10)
+    alpha = np.empty((n, C))
+    _forward(T, cells, actions, C, alpha)
+    mine = np.zeros_like(T)
+    _backward_counts(T, cells, actions, C, alpha, mine)
+    assert mine == pytest.approx(counts, abs=1e-10)
+    assert mine.sum() == pytest.approx(n - 1)
+
+
+def test_the_map_is_deterministic_given_its_seed():
+    obs, actions, _ = ring_walk(2_000)
+    a, b = (fit_chmm(obs, actions, 3, 4, 3, seed=5) for _ in range(2))
+    assert np.array_equal(a.T, b.T)
+    c = fit_chmm(obs, actions, 3, 4, 3, seed=6)
+    assert not np.array_equal(a.T, c.T)
+
+
+# ---------------------------------------------------------------------------------------------
+# Localisation on a world with known rooms
+
+
+def ring_world(rooms: bool = True):
+    """A 12 x 10 world, its west half and east half named rooms (or no rooms)."""
+    data = {"name": "ring", "size": [12, 10], "walls": []}
+    if rooms:
+        data["rooms"] = [
+            {"name": "west", "rect": [0, 0, 6, 10]},
+            {"name": "east", "rect": [6, 0, 12, 10]},
+        ]
+    return world_from_dict(data)
+
+
+def ring_steps(obs, actions, places) -> Steps:
+    """The ring's places 0..11 laid out west to east along y = 5."""
+    poses = np.stack([places + 0.5, np.full(len(places), 5.0), np.zeros(len(places))], axis=1)
+    return Steps(obs, actions, np.zeros((len(obs), 2)), poses)
+
+
+def test_the_map_localises_the_room_where_the_cell_alone_cannot():
+    """Every observation occurs in both rooms: the cell alone is little better than chance;
+    the filtered map state knows the room and the place."""
+    obs, actions, places = ring_walk(12_000)
+    train = ring_steps(obs[:10_000], actions[:10_000], places[:10_000])
+    test = ring_steps(obs[10_000:], actions[10_000:], places[10_000:])
+    model = fit_chmm(train.cells, train.actions, 3, 6, 3, seed=0)
+    loc, state_mean, _ = localisation(model, train, test, ring_world())
+    rooms, errors = loc["room_accuracy"], loc["position_error"]
+    assert rooms["cells"] < 0.7
+    assert rooms["chance"] < 0.6
+    assert rooms["map"] > 0.9
+    assert errors["map"] < 0.5 * errors["cells"]
+    assert errors["cells"] < errors["chance"] * 1.01
+    assert loc["grid_accuracy"]["map"] > loc["grid_accuracy"]["cells"] + 0.3
+    x = state_mean[model.active, 0]  # the states' place fields spread over both rooms
+    assert x.min() < 2
+    assert x.max() > 10
+    # a world without rooms: the room numbers are n/a, the rest is computed
+    loc, _, _ = localisation(model, train, test, ring_world(rooms=False))
+    assert loc["room_accuracy"] == {"map": None, "cells": None, "chance": None}
+    assert loc["position_error"]["map"] == pytest.approx(errors["map"])
+
+
+def test_communities_of_the_map_find_the_two_rooms():
+    """Two cliques joined by one weak edge: two communities."""
+    w = np.zeros((6, 6))
+    w[:3, :3] = w[3:, 3:] = 10.0
+    w[2, 3] = 1.0
+    label = communities(w, np.arange(6), seed=0)
+    assert label.tolist() == [0, 0, 0, 1, 1, 1]
+    assert communities(w, np.array([0, 1, 2]), seed=0)[3:].tolist() == [-1, -1, -1]
+
+
+def test_goal_distances_follow_the_map_to_the_goal():
+    """A chain 0 -> 1 -> 2 -> 3 under action 1 (certain), state 4 pruned: distances 3, 2, 1, 0."""
+    T = np.zeros((2, 5, 5))
+    T[:, :, 0] = 1.0  # every other action and state: back to the start
+    T[1, [0, 1, 2], [1, 2, 3]] = 1.0
+    T[1, [0, 1, 2], 0] = 0.0
+    active = np.array([True, True, True, True, False])
+    model = CloneHMM(T, 1, active, T, {}, T)
+    d = goal_distances(model, np.array([3]))
+    assert d[:4].tolist() == pytest.approx([3, 2, 1, 0])
+    assert np.isinf(d[4])
+
+
+# ---------------------------------------------------------------------------------------------
+# The command
+
+
+def strict_json(path: Path) -> dict:
+    def refuse(name):
+        raise ValueError(f"{name} in {path}")
+
+    return json.loads(path.read_text(), parse_constant=refuse)
+
+
+def test_cli_map_writes_strict_json_graphml_and_figures(cli, rooms1_db_path, tmp_path):
+    out = tmp_path / "map"
+    args = ("--data", rooms1_db_path, "--out", out, "--clusters", "6", "--clones", "3")
+    proc = cli("map", "raw", *args, "--pairs", "2")
+    assert proc.returncode == 0, proc.stderr
+    m = strict_json(out / "map.json")
+    b = m["bits_per_step"]
+    assert set(b) >= {"unigram", "markov", "cell_graph", "map"}
+    assert b["markov"] < b["unigram"]
+    assert b["map"] < b["unigram"]
+    for key in ("room_accuracy", "position_error"):
+        assert set(m["localisation"][key]) == {"map", "cells", "chance"}
+    assert m["rooms"]["names"] == ["southwest", "northwest", "east"]
+    assert -1 <= m["rooms"]["adjusted_rand"] <= 1
+    assert m["planning"]["pairs"] == 2
+    for rate in m["planning"]["success"].values():
+        assert rate in (0.0, 0.5, 1.0)
+    assert 1 <= m["states"]["active"] <= 18
+    import networkx as nx
+
+    graph = nx.read_graphml(out / "map.graphml")
+    assert graph.number_of_nodes() == m["states"]["active"]
+    assert nx.read_graphml(out / "cell_graph.graphml").number_of_nodes() == 6
+    for png in ("place_fields.png", "map_graph.png", "plans.png"):
+        assert (out / png).read_bytes()[:4] == b"\x89PNG"
+    assert "bits/step" in proc.stdout
+
+
+def test_cli_map_bad_input_is_one_line_and_writes_nothing(cli, rooms1_db_path, tmp_path):
+    out = tmp_path / "o"
+    proc = cli("map", "raw", "--data", rooms1_db_path, "--out", out, "--clusters", "1")
+    assert_one_line_error(proc, "--clusters")
+    short = tmp_path / "short.npz"
+    save_database(generate(load_world("rooms1"), 150, seed=0), short)
+    proc = cli("map", "raw", "--data", short, "--out", out)
+    assert_one_line_error(proc, str(short), "split")
+    assert not out.exists()
+
+
+def test_transfer_takes_the_cells_of_another_world(rooms1_db_path, square_db_path):
+    """--fit-data: the k-means is fitted on the other database's training split and assigns
+    this database's steps; the map itself is learned on this database."""
+    rooms1, square = load_database(rooms1_db_path), load_database(square_db_path)
+    train, test, kmeans = cell_steps("raw", rooms1, 5, 0, fit_db=square)
+    own = fit_kmeans(representation_of("raw", square, "train"), 5, 0)
+    assert np.array_equal(kmeans.cluster_centers_, own.cluster_centers_)
+    z = representation_of("raw", rooms1, "test")
+    assert np.array_equal(test.cells, assign_clusters(own, z))
+    assert len(train.cells) == len(rooms1.take("train"))
+
+
+def test_map_refuses_bad_settings_and_other_layouts(rooms1_db_path, tmp_path):
+    with pytest.raises(InputError, match="--clones"):
+        map_files("raw", rooms1_db_path, tmp_path / "o", clones=0)
+    with pytest.raises(InputError, match="states"):
+        map_files("raw", rooms1_db_path, tmp_path / "o", clusters=100, clones=30)
+    other = tmp_path / "other.npz"
+    layout = SensorLayout(angles=(-0.5, -0.25, 0.0, 0.25, 0.5))
+    save_database(generate(load_world("rooms1"), 2_000, seed=0, layout=layout), other)
+    with pytest.raises(InputError, match="layout"):
+        map_files("raw", rooms1_db_path, tmp_path / "o", fit_data=other)
+    assert not (tmp_path / "o").exists()
