@@ -271,3 +271,24 @@ def test_map_refuses_bad_settings_and_other_layouts(rooms1_db_path, tmp_path):
     with pytest.raises(InputError, match="layout"):
         map_files("raw", rooms1_db_path, tmp_path / "o", fit_data=other)
     assert not (tmp_path / "o").exists()
+
+
+def test_a_map_of_a_recording_whose_walls_are_unknown_says_n_a_where_walls_are_needed(
+    rooms1_db_path, tmp_path
+):
+    """An imported robot recording (meta.world names it alone): the map, its bits and positions
+    within the region the path covers; rooms and planning n/a (null), not a failure."""
+    from sensorimotor.sim.database import Database, load_database, save_database
+
+    db = load_database(rooms1_db_path)
+    shift = np.array([-120.0, 35.0, 0.0], dtype=np.float32)  # an odometry frame of its own
+    meta = {"world": {"name": "robot"}, "source": {"kind": "test"}}
+    save_database(Database(db.sensors, db.motors, db.poses + shift, meta), tmp_path / "rec.npz")
+    result = map_files("raw", tmp_path / "rec.npz", tmp_path / "map", clusters=6, clones=3, pairs=5)
+    m = result.metrics
+    assert m["world"] == "robot"
+    assert m["bits_per_step"]["map"] < m["bits_per_step"]["unigram"]
+    assert m["localisation"]["room_accuracy"]["map"] is None
+    assert m["planning"]["success"] == {"map": None, "random": None}
+    errors = m["localisation"]["position_error"]
+    assert 0 < errors["map"] < 60  # within the 50 x 50 region the path covers, shift or not

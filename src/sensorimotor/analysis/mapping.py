@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -78,6 +78,18 @@ class Steps:
     actions: np.ndarray  # (n,) int64 action taken at each step (leads to the next)
     motors: np.ndarray  # (n, 2) float64 (d, r)
     poses: np.ndarray  # (n, 3) float64 (x, y, heading)
+
+
+def _bounding_box(db, train: Steps, test: Steps) -> tuple[World, Steps, Steps]:
+    """Where the walls are unknown (a robot's recording), a world of no walls over the box the
+    poses cover, and the poses moved into it: the grid and the position error are then over
+    the region the robot went through; rooms are unknown and nothing can be planned."""
+    xy = np.concatenate([train.poses[:, :2], test.poses[:, :2]])
+    low = xy.min(axis=0)
+    size = np.maximum(xy.max(axis=0) - low, 1e-6)
+    moved = [replace(s, poses=s.poses - np.array([low[0], low[1], 0.0])) for s in (train, test)]
+    box = World(db.meta["world"]["name"], float(size[0]), float(size[1]), np.zeros((0, 4)))
+    return box, moved[0], moved[1]
 
 
 def check_settings(k: int, clones: int) -> None:
@@ -398,7 +410,11 @@ def map_files(
     if pairs < 0:
         raise InputError(f"--pairs must be at least 0, got {pairs}")
     train, test, kmeans = cell_steps(run, db, clusters, seed, fit_db)
-    world = db.world
+    if db.has_walls:
+        world = db.world
+    else:  # a recording: positions within the path's bounding box, no rooms, no planning
+        world, train, test = _bounding_box(db, train, test)
+        pairs = 0
     graph = cell_graph(train.cells, train.actions, train.motors, clusters)
     model = fit_chmm(
         train.cells, train.actions, clusters, clones, N_ACTIONS, seed, em_iters, progress=progress
