@@ -105,6 +105,28 @@ def _check_same_layout(fit_db: Database, db: Database) -> None:
         raise InputError(f"{db.source}: sensor layout {b} differs from {fit_db.source}'s {a}")
 
 
+def load_inputs(run, data, fit_data, out, outputs: tuple[str, ...]):
+    """What an analysis of ``run`` (``"raw"`` or a run folder) reads, loaded and checked before
+    anything is written: (run, database, fit database or None, output folder); the outputs it
+    would replace in ``out`` must be writable."""
+    db = load_database(data)
+    fit_db = load_database(fit_data) if fit_data is not None else None
+    if str(run) != RAW:
+        from sensorimotor.learn.evaluate import load_run
+
+        run = load_run(run)
+    else:
+        run = RAW
+    if fit_db is not None:
+        _check_same_layout(fit_db, db)
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: is a file, not an output folder")
+    for target in outputs if out.is_dir() else []:  # before anything is written, not midway
+        check_writable(out / target)
+    return run, db, fit_db, out
+
+
 def _out_dir(out: Path) -> Path:
     out = Path(out)
     if out.exists() and not out.is_dir():
@@ -138,21 +160,7 @@ def analyze_files(
     from sensorimotor.analysis.plots import plot_clusters, plot_pca, plot_transfer
     from sensorimotor.sim.plots import save_figure
 
-    db = load_database(data)
-    fit_db = load_database(fit_data) if fit_data is not None else None
-    if str(run) != RAW:
-        from sensorimotor.learn.evaluate import load_run
-
-        run = load_run(run)
-    else:
-        run = RAW
-        if fit_db is not None:
-            _check_same_layout(fit_db, db)
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"{out}: is a file, not an output folder")
-    for target in OUTPUTS if out.is_dir() else []:  # before anything is written, not midway
-        check_writable(out / target)
+    run, db, fit_db, out = load_inputs(run, data, fit_data, out, OUTPUTS)
     source = _analyze(run, fit_db, seed) if fit_db is not None else None
     result = _analyze(run, db, seed, source)
     out = _out_dir(out)  # made only once the analysis has succeeded

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sensorimotor.analysis.analyze import RAW, _check_same_layout, representation_of
+from sensorimotor.analysis.analyze import RAW, load_inputs, representation_of
 from sensorimotor.analysis.cells import (
     ACTION_NAMES,
     N_ACTIONS,
@@ -53,8 +53,8 @@ from sensorimotor.analysis.chmm import (
 from sensorimotor.analysis.clusters import N_CLUSTERS, assign_clusters, fit_kmeans
 from sensorimotor.analysis.planning import GOAL_RADIUS, N_PAIRS, encoder_of, planning
 from sensorimotor.errors import InputError
-from sensorimotor.files import atomic_path, check_writable, write_text_atomic
-from sensorimotor.sim.database import Database, load_database
+from sensorimotor.files import atomic_path, write_text_atomic
+from sensorimotor.sim.database import Database
 from sensorimotor.sim.world import World
 from sensorimotor.version import __version__
 
@@ -392,21 +392,7 @@ def map_files(
 
     check_settings(clusters, clones)
     nx = _networkx()
-    db = load_database(data)
-    fit_db = load_database(fit_data) if fit_data is not None else None
-    if str(run) != RAW:
-        from sensorimotor.learn.evaluate import load_run
-
-        run = load_run(run)
-    else:
-        run = RAW
-    if fit_db is not None:
-        _check_same_layout(fit_db, db)
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"{out}: is a file, not an output folder")
-    for target in OUTPUTS if out.is_dir() else []:
-        check_writable(out / target)
+    run, db, fit_db, out = load_inputs(run, data, fit_data, out, OUTPUTS)
     if pairs < 0:
         raise InputError(f"--pairs must be at least 0, got {pairs}")
     train, test, kmeans = cell_steps(run, db, clusters, seed, fit_db)

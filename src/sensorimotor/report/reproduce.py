@@ -399,6 +399,16 @@ BACKENDS = ("local", "ray")
 GPU_SHARE = 0.25  # of a GPU, held by each Ray task of a CUDA reproduction (tiny models)
 
 
+def check_backend(backend: str, address: str | None, workers: int | None) -> None:
+    """Refuse an unknown backend, an address without Ray, fewer than one worker."""
+    if backend not in BACKENDS:
+        raise InputError(f"--backend: use {' or '.join(BACKENDS)}, got {backend!r}")
+    if address is not None and backend != "ray":
+        raise InputError("--address joins a Ray cluster: add --backend ray")
+    if workers is not None and workers < 1:
+        raise InputError(f"--workers must be at least 1, got {workers}")
+
+
 def reproduce(
     out: str | Path,
     scale: str = "quick",
@@ -418,12 +428,7 @@ def reproduce(
     ``backend``: "local" (worker processes) or "ray" (Ray tasks on the cluster at ``address``,
     or on one started here); the same jobs, the same seeds, the same results. ``workers``:
     jobs at a time (None: every core here, or every CPU of the Ray cluster)."""
-    if backend not in BACKENDS:
-        raise InputError(f"--backend: use {' or '.join(BACKENDS)}, got {backend!r}")
-    if address is not None and backend != "ray":
-        raise InputError("--address joins a Ray cluster: add --backend ray")
-    if workers is not None and workers < 1:
-        raise InputError(f"--workers must be at least 1, got {workers}")
+    check_backend(backend, address, workers)
     if backend == "local":
         workers = default_workers() if workers is None else workers
         return _reproduce(out, scale, seeds, device, workers, log, argv, worlds, run_jobs)

@@ -338,14 +338,9 @@ def run_sweep(
     log: Callable[[str], None] = print,
 ) -> SweepResult:
     """Run (or with ``resume`` go on with) the sweep of file ``spec`` into folder ``out``."""
-    from sensorimotor.report.reproduce import BACKENDS
+    from sensorimotor.report.reproduce import check_backend
 
-    if backend not in BACKENDS:
-        raise InputError(f"--backend: use {' or '.join(BACKENDS)}, got {backend!r}")
-    if address is not None and backend != "ray":
-        raise InputError("--address joins a Ray cluster: add --backend ray")
-    if workers is not None and workers < 1:
-        raise InputError(f"--workers must be at least 1, got {workers}")
+    check_backend(backend, address, workers)
     if backend == "ray":
         from sensorimotor.report.ray_backend import import_ray
 
