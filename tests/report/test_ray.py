@@ -151,3 +151,25 @@ def test_a_sweep_on_ray_killed_and_resumed(cluster, tmp_path):
     assert any(r["stopped"] == "max epochs" for r in rows)
     assert "ASHA early termination" in (out / "sweep.md").read_text()
     assert mpimg.imread(out / "sweep.png").shape[1] > 600
+
+
+def test_rl_agents_as_ray_tasks_are_those_trained_here(cluster, tmp_path, one_thread):
+    """`rl --backend ray`: every agent a Ray task, the same rl.json to the byte."""
+    pytest.importorskip("stable_baselines3")
+    from sensorimotor.report.backend import run_all
+    from sensorimotor.rl.runner import RLConfig, run_grid
+
+    runs = Path(__file__).parents[2] / "docs" / "results" / "runs"
+    tiny = {"n_steps": 32, "batch_size": 64, "n_epochs": 1, "learning_rate": 3e-4,
+            "gamma": 0.99, "gae_lambda": 0.95, "ent_coef": 0.0}  # fmt: skip
+    config = RLConfig("corner", "rooms1", ("raw",), 2, 64, str(runs), eval_every=64,
+                      eval_episodes=2, n_envs=2, ppo=tiny)  # fmt: skip
+    run_grid(config, tmp_path / "here")
+    run_grid(
+        config,
+        tmp_path / "ray",
+        run_agents=lambda todo: run_all(ray_backend.run_jobs, 2, todo),
+    )
+    assert (tmp_path / "ray" / "rl.json").read_bytes() == (
+        tmp_path / "here" / "rl.json"
+    ).read_bytes()

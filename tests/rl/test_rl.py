@@ -219,3 +219,24 @@ def test_the_command_line_refuses_bad_input_in_one_line(cli, tmp_path):
     assert_one_line_error(proc, "two named rooms")
     proc = cli("rl", "corner", "--features", "pose,telepathy", "--out", tmp_path)
     assert_one_line_error(proc, "unknown features telepathy")
+
+
+def test_agents_trained_as_jobs_of_worker_processes_are_those_trained_here(tmp_path, one_thread):
+    """`rl --workers 2`: each agent a job of `report`'s worker processes (as `--backend ray`
+    makes each a Ray task), the same rl.json to the byte as the agents trained in this process."""
+    from sensorimotor.report.backend import job_runner, run_all
+
+    config = tiny_config(features=("raw", "random"), transfer=())
+    run_grid(config, tmp_path / "here")
+    with job_runner("local", workers=2) as (run_jobs, n):
+        jobs = []
+
+        def run_agents(todo):
+            jobs.extend(name for name, _, _ in todo)
+            return run_all(run_jobs, n, todo)
+
+        run_grid(config, tmp_path / "jobs", run_agents=run_agents)
+    assert sorted(jobs) == ["random__s0", "raw__s0"]
+    assert (tmp_path / "jobs" / "rl.json").read_bytes() == (
+        tmp_path / "here" / "rl.json"
+    ).read_bytes()

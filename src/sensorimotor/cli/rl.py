@@ -8,6 +8,8 @@ from typing import Annotated
 import typer
 
 from sensorimotor.cli.app import app, err_console, progress_bar
+from sensorimotor.cli.report import AddressOpt, BackendOpt
+from sensorimotor.report.backend import check_backend, job_runner, run_all
 
 
 @app.command()
@@ -25,6 +27,12 @@ def rl(
     transfer: Annotated[str, typer.Option(help="Comma-separated worlds to test in.")] = "",
     eval_every: Annotated[int, typer.Option(min=1, help="Steps between evaluations.")] = 5_000,
     eval_episodes: Annotated[int, typer.Option(min=1, help="Episodes an evaluation.")] = 50,
+    backend: BackendOpt = "local",
+    address: AddressOpt = None,
+    workers: Annotated[
+        int | None,
+        typer.Option(help="Agents at a time (default: one, in this process; ray: every CPU)."),
+    ] = None,
 ) -> None:
     """PPO on frozen encoders' features (the paper's planned RL test): success per feature set."""
     from sensorimotor.rl import check_extra
@@ -39,6 +47,18 @@ def rl(
     config = RLConfig(task, world, tuple(names), seeds, steps, str(runs), trained_on, worlds,
                       eval_every, eval_episodes)  # fmt: skip
     check_inputs(config)  # before the progress bar: an error is one line
+    check_backend(backend, address, workers)
+    if backend == "ray" or (workers or 1) > 1:  # agents as jobs: worker processes, Ray tasks
+        with job_runner(backend, address, workers) as (run_jobs, n):
+
+            def run_agents(jobs):
+                return run_all(
+                    run_jobs, n, jobs, lambda name, msg: err_console.print(f"  {name}: {msg}")
+                )
+
+            result = run_grid(config, out, run_agents=run_agents)
+        err_console.print("\n".join([*summary_lines(result), f"wrote {out}/rl.json, rl.png"]))
+        return
     order = {(f, s): i for i, (f, s) in enumerate((f, s) for f in names for s in range(seeds))}
     with progress_bar() as bar:
         job = bar.add_task(f"rl {task}", total=len(names) * seeds * steps)

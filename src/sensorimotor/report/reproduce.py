@@ -26,7 +26,8 @@ from sensorimotor.errors import InputError
 from sensorimotor.files import file_hash, write_json_atomic
 from sensorimotor.learn.models import MODEL_KINDS
 from sensorimotor.learn.runs import count
-from sensorimotor.report.workers import Job, default_workers, hardware, report, run_jobs
+from sensorimotor.report.backend import GPU_SHARE, job_runner
+from sensorimotor.report.workers import Job, hardware, report
 from sensorimotor.version import __version__
 
 WORLDS = ("square", "rooms1", "rooms2")
@@ -395,20 +396,6 @@ def _training_jobs(rep: Reproduction, data_hash: dict[str, str]):
     return jobs, trains, sum(len(runs) for runs in groups.values())
 
 
-BACKENDS = ("local", "ray")
-GPU_SHARE = 0.25  # of a GPU, held by each Ray task of a CUDA reproduction (tiny models)
-
-
-def check_backend(backend: str, address: str | None, workers: int | None) -> None:
-    """Refuse an unknown backend, an address without Ray, fewer than one worker."""
-    if backend not in BACKENDS:
-        raise InputError(f"--backend: use {' or '.join(BACKENDS)}, got {backend!r}")
-    if address is not None and backend != "ray":
-        raise InputError("--address joins a Ray cluster: add --backend ray")
-    if workers is not None and workers < 1:
-        raise InputError(f"--workers must be at least 1, got {workers}")
-
-
 def reproduce(
     out: str | Path,
     scale: str = "quick",
@@ -428,19 +415,10 @@ def reproduce(
     ``backend``: "local" (worker processes) or "ray" (Ray tasks on the cluster at ``address``,
     or on one started here); the same jobs, the same seeds, the same results. ``workers``:
     jobs at a time (None: every core here, or every CPU of the Ray cluster)."""
-    check_backend(backend, address, workers)
-    if backend == "local":
-        workers = default_workers() if workers is None else workers
-        return _reproduce(out, scale, seeds, device, workers, log, argv, worlds, run_jobs)
-    from functools import partial
-
     from sensorimotor.learn.train import resolve_device
-    from sensorimotor.report import ray_backend
 
-    gpus = GPU_SHARE if resolve_device(device) == "cuda" else 0.0
-    with ray_backend.ray_session(address, workers) as cpus:
-        runner = partial(ray_backend.run_jobs, gpus=gpus)
-        workers = cpus if workers is None else workers
+    gpus = GPU_SHARE if backend == "ray" and resolve_device(device) == "cuda" else 0.0
+    with job_runner(backend, address, workers, gpus) as (runner, workers):
         return _reproduce(out, scale, seeds, device, workers, log, argv, worlds, runner)
 
 

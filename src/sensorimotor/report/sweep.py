@@ -338,7 +338,7 @@ def run_sweep(
     log: Callable[[str], None] = print,
 ) -> SweepResult:
     """Run (or with ``resume`` go on with) the sweep of file ``spec`` into folder ``out``."""
-    from sensorimotor.report.reproduce import check_backend
+    from sensorimotor.report.backend import check_backend
 
     check_backend(backend, address, workers)
     if backend == "ray":

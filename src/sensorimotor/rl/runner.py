@@ -249,30 +249,62 @@ def check_inputs(config: RLConfig) -> None:
             load_encoder(features, Path(config.runs), config.trained_on, seed)
 
 
+# a job as the job runners of ``report`` take it: (name, function, arguments)
+AgentJob = tuple[str, Callable, tuple]
+
+
+def agent_job(
+    config: RLConfig,
+    features: str,
+    seed: int,
+    folder: str,
+    report: Callable[[int], None] | None = None,
+) -> dict:
+    """Train one agent into ``folder`` and write its ``result.json``: the unit of work, in
+    this process or as a job of a job runner (worker processes, Ray tasks: a top-level
+    function, so that it pickles). ``report(steps_done)`` follows its training."""
+    path = Path(folder) / "result.json"
+    result = train_agent(config, features, seed, path.parent, report or (lambda n: None))
+    write_text_atomic(path, json.dumps(result, indent=2, allow_nan=False))
+    return result
+
+
 def run_grid(
-    config: RLConfig, out: Path, progress: Callable[[str, int, int], None] | None = None
+    config: RLConfig,
+    out: Path,
+    progress: Callable[[str, int, int], None] | None = None,
+    run_agents: Callable[[list[AgentJob]], dict[str, dict]] | None = None,
 ) -> dict:
     """Train (or reuse) every agent of ``config`` in ``out``, write ``rl.json`` and ``rl.png``;
-    return ``rl.json``'s content. ``progress(features, seed, steps_done)`` follows training."""
+    return ``rl.json``'s content. ``progress(features, seed, steps_done)`` follows training in
+    this process; ``run_agents`` (the command line passes one of ``report``'s job runners)
+    trains the agents left as jobs instead, several at a time. Every agent is what it is
+    trained alone: its seeds, its folder."""
     check_inputs(config)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    agents: dict[str, list[dict]] = {}
+    results: dict[tuple[str, int], dict] = {}
+    todo: list[AgentJob] = []
     for features in config.features:
         for seed in range(config.seeds):
-            path = agent_folder(out, features, seed) / "result.json"
-            result = load_agent(path, config)
+            folder = agent_folder(out, features, seed)
+            result = load_agent(folder / "result.json", config)
+            if result is None and run_agents is not None:
+                todo.append((folder.name, agent_job, (config, features, seed, str(folder))))
+                continue
             if result is None:
                 report = (
-                    (lambda f, s: lambda n: progress(f, s, n))(features, seed)
-                    if progress
-                    else (lambda n: None)
+                    (lambda f, s: lambda n: progress(f, s, n))(features, seed) if progress else None
                 )
-                result = train_agent(config, features, seed, path.parent, report)
-                write_text_atomic(path, json.dumps(result, indent=2, allow_nan=False))
+                result = agent_job(config, features, seed, str(folder), report)
             elif progress:
                 progress(features, seed, config.steps)
-            agents.setdefault(features, []).append(result)
+            results[features, seed] = result
+    if todo:
+        done = run_agents(todo)
+        for _name, _fn, (_config, features, seed, _folder) in todo:
+            results[features, seed] = done[_name]
+    agents = {f: [results[f, s] for s in range(config.seeds)] for f in config.features}
     rl = aggregate(config, agents)
     write_text_atomic(out / "rl.json", json.dumps(rl, indent=2, allow_nan=False))
     from sensorimotor.rl.plots import plot_rl
