@@ -12,7 +12,7 @@ from sensorimotor.cli.app import (
     app,
     err_console,
 )
-from sensorimotor.sim.core import MAX_SEED
+from sensorimotor.sim import MAX_SEED
 
 
 @app.command()

@@ -19,7 +19,7 @@ from sensorimotor.cli.app import (
     progress_bar,
 )
 from sensorimotor.errors import InputError
-from sensorimotor.sim.core import MAX_SEED
+from sensorimotor.sim import MAX_SEED
 
 
 @app.command()

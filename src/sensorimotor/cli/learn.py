@@ -15,7 +15,7 @@ from sensorimotor.cli.app import (
     err_console,
 )
 from sensorimotor.errors import InputError
-from sensorimotor.sim.core import MAX_SEED
+from sensorimotor.sim import MAX_SEED
 
 SET_HELP = (
     "A setting KEY=VALUE, repeatable: lr, batch_size, horizon, patience, min_ratio, or a model "

@@ -14,7 +14,7 @@ import typer
 
 from sensorimotor.errors import InputError
 from sensorimotor.files import check_writable, write_text_atomic
-from sensorimotor.sim.core import MAX_SEED
+from sensorimotor.sim import MAX_SEED
 
 world_app = typer.Typer(
     help="Make world files: generated floor plans, imported ROS building maps.",

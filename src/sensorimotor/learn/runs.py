@@ -36,7 +36,7 @@ from sensorimotor.files import (
 )
 from sensorimotor.files import write_text_atomic as _write_text
 from sensorimotor.learn.models import MODEL_KINDS, ModelConfig
-from sensorimotor.sim.core import MAX_SEED
+from sensorimotor.sim import MAX_SEED
 from sensorimotor.sim.database import Database
 from sensorimotor.version import __version__
 

@@ -2,3 +2,6 @@
 kinematics, the wall-avoiding behaviour and rollouts (``core``), databases (``database``),
 ground-truth events from pose and walls (``events``), and the drawings of a world and of what
 the robot perceives (``plots``). Nothing here imports torch."""
+
+MAX_SEED = 2**32 - 1  # the largest seed that every seeded library here accepts (and light to
+# import: the command line reads it before it knows whether numba is needed)

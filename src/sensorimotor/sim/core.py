@@ -22,7 +22,6 @@ from sensorimotor.sim.grid import WallGrid, cast_grid, for_rays
 from sensorimotor.sim.world import START_CLEARANCE, World, free_start_cells, point_segment_distance
 
 SENSOR_ANGLES = np.array([-0.6, -0.3, 0.0, 0.3, 0.6])  # rad from the heading; index 0 rightmost
-MAX_SEED = 2**32 - 1  # the largest seed that every seeded library here accepts
 MAX_RANGE = 10.0  # units; a ray that hits nothing nearer reads exactly this
 MAX_RAYS = 1024  # rays a layout may have
 TURN_THRESHOLD = 1.0  # units; the behaviour turns around when a reading is below this

@@ -9,8 +9,6 @@ float32 rounding (tests compare the two).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import torch
 
 USE_PRIVATE = True  # False: the public fallbacks everywhere (tests compare the two)
@@ -24,11 +22,11 @@ except (AttributeError, RuntimeError):  # pragma: no cover - a PyTorch without i
 
 
 def adam_(
-    params: Sequence[torch.Tensor],
-    grads: Sequence[torch.Tensor],
-    exp_avg: Sequence[torch.Tensor],
-    exp_avg_sq: Sequence[torch.Tensor],
-    steps: Sequence[torch.Tensor],
+    params: list[torch.Tensor],
+    grads: list[torch.Tensor],
+    exp_avg: list[torch.Tensor],
+    exp_avg_sq: list[torch.Tensor],
+    steps: list[torch.Tensor],
     lr: float,
     betas: tuple[float, float] = (0.9, 0.999),
     eps: float = 1e-8,
@@ -41,13 +39,13 @@ def adam_(
     ``torch._fused_adam_`` (what ``torch.optim.Adam(fused=True)`` calls) does it in one kernel
     over all the lists; the fallback in public operations, tensor by tensor."""
     if USE_PRIVATE and _FUSED_ADAM is not None:
-        _FUSED_ADAM(
-            list(params),
-            list(grads),
-            list(exp_avg),
-            list(exp_avg_sq),
+        _FUSED_ADAM(  # lists as given: a step is bound by per-call overhead
+            params,
+            grads,
+            exp_avg,
+            exp_avg_sq,
             [],
-            list(steps),
+            steps,
             lr=lr,
             beta1=betas[0],
             beta2=betas[1],
@@ -67,10 +65,10 @@ def adam_(
             p.addcdiv_(m, denom, value=-lr / (1 - b1**step))
 
 
-def add_(tensors: Sequence[torch.Tensor], value: float) -> None:
+def add_(tensors: list[torch.Tensor], value: float) -> None:
     """Add ``value`` to every tensor in place: ``torch._foreach_add_`` in one call, or a loop."""
     if USE_PRIVATE and _FOREACH_ADD is not None:
-        _FOREACH_ADD(list(tensors), value)
+        _FOREACH_ADD(tensors, value)
         return
     for t in tensors:
         t.add_(value)
