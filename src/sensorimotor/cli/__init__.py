@@ -1,7 +1,7 @@
 """The command line: parse, call the library, turn every user error into one line and exit 2.
 
-One module per layer of the package holds its commands (``data``, ``learn``, ``analysis``,
-``report``); importing them registers them on ``app.app``.
+One module per layer of the package holds its commands (``data``, ``world``, ``learn``,
+``analysis``, ``report``, ``rl``); importing them registers them on ``app.app``.
 """
 
 from __future__ import annotations
@@ -10,12 +10,9 @@ import sys
 
 import typer
 
-from sensorimotor.cli import analysis, data, learn, report, rl  # noqa: F401  (registers them)
+from sensorimotor.cli import analysis, data, learn, report, rl, world  # noqa: F401  (registers them)
 from sensorimotor.cli.app import INTERRUPTED, app
-from sensorimotor.cli.world import world_app
 from sensorimotor.errors import InputError
-
-app.add_typer(world_app, name="world")
 
 
 def main() -> None:

@@ -12,6 +12,7 @@ from typing import Annotated
 
 import typer
 
+from sensorimotor.cli.app import app
 from sensorimotor.errors import InputError
 from sensorimotor.files import check_writable, write_text_atomic
 from sensorimotor.sim import MAX_SEED
@@ -20,6 +21,7 @@ world_app = typer.Typer(
     help="Make world files: generated floor plans, imported ROS building maps.",
     no_args_is_help=True,
 )
+app.add_typer(world_app, name="world")
 WorldOut = Annotated[Path, typer.Option(help="Output .toml world file (written atomically).")]
 
 
