@@ -299,3 +299,37 @@ def test_an_analysis_cut_short_leaves_no_metrics_of_an_earlier_one(
     with pytest.raises(InputError, match="no space left"):
         analyze_mod.analyze_files("raw", square_db_path, out, svg=False, seed=1)
     assert not (out / "metrics.json").exists()  # the figures alone: an analysis to redo
+
+
+# the file kinds of the map, the sweep, the world import and RL ------------------------------
+
+
+@pytest.mark.parametrize("kind", ["sweep", "map_yaml", "map_image"])
+def test_the_newer_file_kinds_refuse_a_fifo_and_a_deep_nest_in_one_line(kind, tmp_path, cli):
+    from sensorimotor.report.sweep import read_sweep
+    from sensorimotor.sim.rosmap import read_image, read_map_yaml
+
+    read = {"sweep": read_sweep, "map_yaml": read_map_yaml, "map_image": read_image}[kind]
+    fifo = tmp_path / "input"
+    os.mkfifo(fifo)
+    with pytest.raises(InputError, match="a FIFO, not a"):
+        read(fifo)
+    if kind == "sweep":
+        deep = tmp_path / "deep.toml"
+        deep.write_text('data = "x.npz"\n[space]\nlr = ' + "[" * 5000 + "]" * 5000 + "\n")
+        proc = cli("sweep", deep, "--out", tmp_path / "s")
+        assert_one_line_error(proc, str(deep), "nested")
+        assert not (tmp_path / "s").exists()
+
+
+def test_an_agent_result_that_is_not_json_is_one_line_and_kept(tmp_path):
+    pytest.importorskip("stable_baselines3")
+    from sensorimotor.rl.runner import RLConfig, load_agent
+
+    path = tmp_path / "raw__s0" / "result.json"
+    path.parent.mkdir()
+    path.write_text("[" * 100_000 + "]" * 100_000)
+    config = RLConfig("corner", "rooms1", ("raw",), 1, 64)
+    with pytest.raises(InputError, match="nested too deeply to be a result of an agent"):
+        load_agent(path, config)
+    assert path.read_text().startswith("[[[")  # what a user trained is never overwritten

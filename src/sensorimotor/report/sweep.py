@@ -52,7 +52,13 @@ from pathlib import Path
 import numpy as np
 
 from sensorimotor.errors import InputError
-from sensorimotor.files import write_text_atomic
+from sensorimotor.files import (
+    MAX_TEXT_BYTES,
+    check_input,
+    check_nesting,
+    read_json,
+    write_text_atomic,
+)
 from sensorimotor.learn.runs import SIZES, TrainConfig, model_config
 from sensorimotor.report.workers import Job, JobFailure, default_workers, report
 
@@ -108,15 +114,16 @@ def _table(raw: dict, key: str, path: Path) -> dict:
 
 def read_sweep(path: str | Path) -> Sweep:
     """Read a sweep file; InputError naming the file and the setting on any problem."""
-    path = Path(path)
+    path = check_input(path, "sweep file", MAX_TEXT_BYTES)
     try:
         raw = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such sweep file") from None
     except (OSError, UnicodeDecodeError) as err:
         raise InputError(f"{path}: cannot read the sweep file ({err})") from None
     except tomllib.TOMLDecodeError as err:
         raise InputError(f"{path}: not valid TOML ({err})") from None
+    except RecursionError:
+        raise InputError(f"{path}: nested too deeply to be a sweep file") from None
+    check_nesting(raw, str(path))
     known = {"data", "search", "trials", "seed", "train", "space", "asha"}
     unknown = sorted(set(raw) - known)
     if unknown:
@@ -300,10 +307,7 @@ def _open(sweep: Sweep, out: Path, resume: bool) -> None:
     if record.exists() and not resume:
         raise InputError(f"{out}: already holds a sweep; pass --resume to go on with it")
     if record.exists():
-        try:
-            old = json.loads(record.read_text())
-        except (OSError, ValueError) as err:
-            raise InputError(f"{record}: corrupt sweep record ({err})") from None
+        old = read_json(record, "sweep record")
         if old != json.loads(json.dumps(sweep.record())):
             raise InputError(
                 f"{out}: --resume with another sweep than {sweep.path} (its trials differ)"

@@ -31,7 +31,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv
 
 from sensorimotor.envs import TASK_IDS, LaserTaskEnv
 from sensorimotor.errors import InputError
-from sensorimotor.files import atomic_path, write_text_atomic
+from sensorimotor.files import atomic_path, read_json, write_text_atomic
 from sensorimotor.rl.features import FEATURES, FeatureVecEnv, load_encoder
 from sensorimotor.rl.results import summary, verdicts
 from sensorimotor.sim.world import load_world
@@ -229,10 +229,10 @@ def load_agent(path: Path, config: RLConfig) -> dict | None:
     with other settings (another experiment in the same folder)."""
     if not path.is_file():
         return None
+    result = read_json(path, "result of an agent")
     try:
-        result = json.loads(path.read_text())
         made_with = result["config"]
-    except (ValueError, KeyError, TypeError, OSError) as err:
+    except (KeyError, TypeError) as err:
         raise InputError(f"{path}: not an agent result ({err})") from None
     if made_with != json.loads(json.dumps(config.agent_config())):
         raise InputError(f"{path}: made with other settings; use another --out")

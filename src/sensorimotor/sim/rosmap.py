@@ -32,10 +32,12 @@ from pathlib import Path
 import numpy as np
 
 from sensorimotor.errors import InputError
+from sensorimotor.files import MAX_TEXT_BYTES, check_input
 from sensorimotor.sim.world import NAME_PATTERN, World, world_from_dict
 
 KEYS = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh", "mode")
 NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
+MAX_IMAGE_BYTES = 1 << 30  # a map image: a building at 1 cm a pixel is far less
 
 
 def _value(text: str):
@@ -51,9 +53,7 @@ def _value(text: str):
 
 def read_map_yaml(path: str | Path) -> dict:
     """The map_server keys of ``path``: ``{key: number | str | list}``; InputError if bad."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: map file not found")
+    path = check_input(path, "map file", MAX_TEXT_BYTES)
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as err:
@@ -84,9 +84,7 @@ def _number(meta: dict, key: str, default: float, path: Path) -> float:
 
 def read_image(path: Path) -> np.ndarray:
     """(rows, cols) float64 grey levels in 0..255 of a PGM (P2/P5, 8 or 16 bit) or PNG."""
-    if not path.is_file():
-        raise InputError(f"{path}: map image not found")
-    data = path.read_bytes()
+    data = check_input(path, "map image", MAX_IMAGE_BYTES).read_bytes()
     if data[:2] in (b"P2", b"P5"):
         return _read_pgm(data, path)
     if data[:8] == b"\x89PNG\r\n\x1a\n":
