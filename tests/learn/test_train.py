@@ -211,6 +211,21 @@ def test_resume_after_sigkill_matches_uninterrupted(square_db_path, tmp_path):
     assert json.loads((tmp_path / "k" / "result.json").read_text())["epochs"] == 4
 
 
+def test_a_kill_between_checkpoint_and_history_is_mended_on_resume(square_db_path, tmp_path):
+    """checkpoint.pt holds epoch 1, history.csv only epoch 0 (the kill fell between their
+    two writes): the resumed run finishes with the checkpoint's two epochs in history.csv."""
+    cfg = TrainConfig(model="s", seed=0, max_epochs=2)
+    train(square_db_path, tmp_path / "k", cfg)
+    history = tmp_path / "k" / "history.csv"
+    straight = history.read_text()
+    history.write_text("".join(straight.splitlines(keepends=True)[:2]))
+    (tmp_path / "k" / "result.json").unlink()
+    result = train(square_db_path, tmp_path / "k", cfg, resume=True)
+    assert history.read_text() == straight
+    assert result.epochs == 2
+    assert result.stopped == "max epochs"
+
+
 def test_existing_run_needs_resume(square_db_path, tmp_path, cli):
     train(square_db_path, tmp_path / "a", TrainConfig(model="s", max_epochs=1))
     proc = cli("train", "s", "--data", square_db_path, "--out", tmp_path / "a")

@@ -524,7 +524,9 @@ def save_epoch(
 def finish_run(
     out: Path, stopper: EarlyStopping, history: list[EpochRecord], stopped: str, elapsed: float
 ) -> TrainResult:
-    """Write ``result.json``: the run is finished."""
+    """Write ``result.json``: the run is finished. ``history.csv`` is rewritten from the
+    checkpoint's history first: a kill between the checkpoint and it left it an epoch short."""
+    _write_text(out / "history.csv", _history_csv(history))
     result = TrainResult(
         out, stopper.best_epoch, stopper.lowest, len(history), stopped, elapsed, history
     )
