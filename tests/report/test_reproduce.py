@@ -183,6 +183,7 @@ def _group_alive(pgid: int) -> bool:
         (["--device", "tpu"], "unknown device"),
         (["--worlds", "square,maze"], "--worlds: use any of square, rooms1, rooms2"),
         (["--worlds", ","], "--worlds"),
+        (["--experiment", "maze"], "--experiment: use any of"),
     ],
 )
 def test_bad_options_are_refused(args, needle, tmp_path, cli):

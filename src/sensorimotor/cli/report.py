@@ -51,6 +51,13 @@ def reproduce(
     ] = "square,rooms1,rooms2",
     backend: BackendOpt = "local",
     address: AddressOpt = None,
+    experiment: Annotated[
+        str | None,
+        typer.Option(
+            help="Experiments past the paper to run after its stages, comma-separated, each "
+            "with its own report section (none: only the paper; default: the cheap ones)."
+        ),
+    ] = None,
 ) -> None:
     """Reproduce the paper: databases, the four models on the three worlds, Table I, the analysis, a report."""
     from sensorimotor.report.reproduce import reproduce as reproduce_all
@@ -66,6 +73,7 @@ def reproduce(
         worlds=[w.strip() for w in worlds.split(",") if w.strip()],
         backend=backend,
         address=address,
+        experiments=None if experiment is None else [e.strip() for e in experiment.split(",")],
     )
     done = f"done in {rep.timings['total']['seconds']:.0f} s: {rep.out / 'report.html'} and {rep.out / 'report.md'}"
     holds = rep.table["paper_ordering_holds"].get("square")

@@ -458,8 +458,11 @@ def _claims(rep, numbers: dict) -> tuple[list[Block], list]:
     return b, rows_c
 
 
-def write_report(rep, argv: list[str], hardware: dict) -> tuple[Path, Path]:
-    """Write ``report.md``, ``report.html`` and ``claims.json`` into ``rep.out``."""
+def write_report(
+    rep, argv: list[str], hardware: dict, extra: list[Block] = ()
+) -> tuple[Path, Path]:
+    """Write ``report.md``, ``report.html`` and ``claims.json`` into ``rep.out``; ``extra``:
+    the sections of the experiments past the paper, after the paper's claims."""
     import time
 
     t0 = time.perf_counter()
@@ -478,6 +481,7 @@ def write_report(rep, argv: list[str], hardware: dict) -> tuple[Path, Path]:
         *_inside(rep, figs, numbers, worlds),
         *_maps(rep),
         *claims,
+        *extra,
     ]
     md = to_markdown(b, out)
     page = to_html(b, "sensorimotor reproduction report")

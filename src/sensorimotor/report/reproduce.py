@@ -7,6 +7,8 @@ missing; a killed run resumes, losing nothing finished):
     train     OUT/runs/{world}__{model}__s{seed}/      every model on every world (--worlds), K seeds
     evaluate  OUT/eval/{run}.json                      each run on the three test splits
     analyze   OUT/analysis/{run}/, OUT/analysis/raw__{world}/, OUT/transfer/{run}__to__{world}/
+    NAME      OUT/NAME/                                each experiment past the paper
+                                                       (--experiment NAME: experiments.py)
     report    OUT/report.md, OUT/report.html           Table I, figures, the paper's claims
 """
 
@@ -248,6 +250,8 @@ class Reproduction:
     table: dict = field(default_factory=dict)
     analyses: dict[str, dict] = field(default_factory=dict)
     transfers: dict[str, dict] = field(default_factory=dict)
+    experiments: tuple[str, ...] = ()  # past the paper, run after its stages
+    found: dict[str, dict] = field(default_factory=dict)  # each experiment's numbers
 
     def run_name(self, world: str, model: str, seed: int) -> str:
         from sensorimotor.learn.runs import run_name
@@ -407,6 +411,7 @@ def reproduce(
     worlds: Sequence[str] | None = None,
     backend: str = "local",
     address: str | None = None,
+    experiments: Sequence[str] | None = None,
 ) -> Reproduction:
     """Run (or resume) every stage; returns what was found. See the module docstring.
 
@@ -414,15 +419,21 @@ def reproduce(
     all); every trained model is still tested on all three, as the paper's Table I.
     ``backend``: "local" (worker processes) or "ray" (Ray tasks on the cluster at ``address``,
     or on one started here); the same jobs, the same seeds, the same results. ``workers``:
-    jobs at a time (None: every core here, or every CPU of the Ray cluster)."""
+    jobs at a time (None: every core here, or every CPU of the Ray cluster).
+    ``experiments``: the experiments past the paper to run after its stages (names of
+    ``experiments.EXPERIMENTS``; None: ``experiments.DEFAULT``)."""
     from sensorimotor.learn.train import resolve_device
+    from sensorimotor.report.experiments import check_experiments
 
+    chosen = check_experiments(experiments)
     gpus = GPU_SHARE if backend == "ray" and resolve_device(device) == "cuda" else 0.0
     with job_runner(backend, address, workers, gpus) as (runner, workers):
-        return _reproduce(out, scale, seeds, device, workers, log, argv, worlds, runner)
+        return _reproduce(out, scale, seeds, device, workers, log, argv, worlds, runner, chosen)
 
 
-def _reproduce(out, scale, seeds, device, workers, log, argv, worlds, run_jobs) -> Reproduction:
+def _reproduce(
+    out, scale, seeds, device, workers, log, argv, worlds, run_jobs, experiments=()
+) -> Reproduction:
     """``reproduce`` with its jobs run by ``run_jobs`` (``workers.run_jobs``'s signature)."""
     if scale not in SCALES:
         raise InputError(f"unknown scale {scale!r}: use one of {', '.join(SCALES)}")
@@ -442,7 +453,7 @@ def _reproduce(out, scale, seeds, device, workers, log, argv, worlds, run_jobs) 
             (out / sub).mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise InputError(f"{out}: cannot create the output folder ({err.strerror})") from None
-    rep = Reproduction(out, sc, seeds, device, workers, trained)
+    rep = Reproduction(out, sc, seeds, device, workers, trained, experiments=tuple(experiments))
     t_start = time.perf_counter()
 
     def progress(name: str, message: str) -> None:
@@ -548,12 +559,21 @@ def _reproduce(out, scale, seeds, device, workers, log, argv, worlds, run_jobs) 
             metrics = json.loads((Path(dest) / "metrics.json").read_text())
             (rep.transfers if fit else rep.analyses)[name] = metrics
 
+    # experiments past the paper ---------------------------------------------------------
+    from sensorimotor.report import experiments as ex
+
+    for name in rep.experiments:
+        with _stage(rep, name, log):
+            ctx = ex.Context(rep, name, run_jobs, workers, progress, log)
+            rep.found[name] = ex.run_experiment(ctx)
+
     # report -------------------------------------------------------------------------------
     with _stage(rep, "report", log):
         from sensorimotor.report.document import write_report
 
         rep.timings["total"] = {"seconds": time.perf_counter() - t_start}
-        write_report(rep, argv if argv is not None else sys.argv, hardware())
+        extra = ex.sections(rep, rep.found)
+        write_report(rep, argv if argv is not None else sys.argv, hardware(), extra)
     rep.timings["total"] = {"seconds": time.perf_counter() - t_start}
     _write_json(out / "timings.json", rep.timings)
     return rep

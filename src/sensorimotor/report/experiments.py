@@ -1,0 +1,88 @@
+"""Experiments past the paper: optional stages of ``reproduce --experiment NAME[,NAME]``.
+
+Each runs after the paper's stages and on their outputs (databases, runs, analyses), keeps its
+files under ``OUT/NAME/`` cached by a hash of their inputs (a rerun redoes only what changed; a
+killed run loses nothing finished), and adds its own section to the report. An experiment is a
+module named in ``EXPERIMENTS`` with two functions:
+
+    run(ctx: Context) -> dict                  its jobs (through ctx.run_jobs); its numbers,
+                                               strict JSON, which reproduce writes to
+                                               OUT/NAME/NAME.json
+    section(rep, found: dict) -> list[Block]   its report section, read from those numbers
+
+Its module must not import ``reproduce`` (it is handed the Reproduction): imports point one way.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from types import ModuleType
+
+from sensorimotor.errors import InputError
+from sensorimotor.files import write_json_atomic
+
+EXPERIMENTS: dict[str, str] = {}
+"""name -> the module that runs it."""
+DEFAULT: tuple[str, ...] = ()
+"""The experiments ``reproduce`` runs unless told otherwise (cheap enough for every run)."""
+
+
+@dataclass(frozen=True)
+class Context:
+    """What an experiment's ``run`` is handed: the reproduction so far and how to run jobs."""
+
+    rep: object  # reproduce.Reproduction: out, scale, seeds, worlds, data, runs, analyses, ...
+    name: str
+    run_jobs: Callable  # workers.run_jobs's signature, on the reproduction's backend
+    workers: int
+    progress: Callable[[str, str], None]  # (job name, message)
+    log: Callable[[str], None]
+
+    @property
+    def dir(self) -> Path:
+        """``OUT/NAME/``: the experiment's own folder (made before ``run``)."""
+        return Path(self.rep.out) / self.name
+
+
+def check_experiments(names: Sequence[str] | None) -> tuple[str, ...]:
+    """The experiments to run, in ``EXPERIMENTS``' order: ``DEFAULT`` for None, none for
+    ``["none"]``; an unknown name is refused with the known ones."""
+    if names is None:
+        return DEFAULT
+    names = [n for n in names if n]
+    if names == ["none"]:
+        return ()
+    unknown = [n for n in names if n not in EXPERIMENTS]
+    if unknown or not names:
+        known = ", ".join([*EXPERIMENTS, "none"])
+        raise InputError(
+            f"--experiment: use any of {known} (comma-separated), got {','.join(names)!r}"
+        )
+    return tuple(n for n in EXPERIMENTS if n in names)
+
+
+def module(name: str) -> ModuleType:
+    return importlib.import_module(EXPERIMENTS[name])
+
+
+def run_experiment(ctx: Context) -> dict:
+    """Run one experiment into ``OUT/NAME/``; its numbers, also written to ``NAME.json``."""
+    try:
+        ctx.dir.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise InputError(
+            f"{ctx.dir}: cannot create the experiment's folder ({err.strerror})"
+        ) from None
+    found = module(ctx.name).run(ctx)
+    write_json_atomic(ctx.dir / f"{ctx.name}.json", found)
+    return found
+
+
+def sections(rep, found: dict[str, dict]) -> list:
+    """Every experiment's report section, in the order they ran."""
+    return [
+        block for name, numbers in found.items() for block in module(name).section(rep, numbers)
+    ]
