@@ -61,6 +61,6 @@ def test_an_experiment_runs_in_its_folder_and_its_section_reads_its_numbers(echo
 def test_numbers_that_are_not_json_are_refused_and_nothing_is_written(echo, tmp_path):
     echo.run = lambda ctx: {"value": float("nan")}
     ctx = ex.Context(SimpleNamespace(out=tmp_path), "echo", None, 1, None, print)
-    with pytest.raises(ValueError, match="JSON compliant"):
+    with pytest.raises(InputError, match="value is nan"):
         ex.run_experiment(ctx)
     assert not (tmp_path / "echo" / "echo.json").exists()
