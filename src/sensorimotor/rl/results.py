@@ -85,6 +85,10 @@ def summary_lines(rl: dict) -> list[str]:
     return lines
 
 
+HEADLINE = "success_stochastic"
+"""The score a report leads with: the success rate of the policy PPO trains, its actions sampled
+(DESIGN.md, "Reinforcement learning": the mean action rewards reflexes and fails the oracle)."""
+MIN_SEEDS = 3  # fewer seeds: a report states no verdict (a bootstrap over 2 values says nothing)
 MOTOR_FEATURES = ("sm", "rec-sm")  # encoders trained with the motor commands
 CLAIM = "features learned with motors help the agent more than raw readings"
 THRESHOLD = (

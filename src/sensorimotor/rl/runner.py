@@ -33,7 +33,7 @@ from sensorimotor.envs import TASK_IDS, LaserTaskEnv
 from sensorimotor.errors import InputError
 from sensorimotor.files import atomic_path, read_json, write_text_atomic
 from sensorimotor.rl.features import FEATURES, FeatureVecEnv, load_encoder
-from sensorimotor.rl.results import summary, verdicts
+from sensorimotor.rl.results import HEADLINE, summary, verdicts
 from sensorimotor.sim.world import load_world
 from sensorimotor.version import __version__
 
@@ -239,6 +239,18 @@ def load_agent(path: Path, config: RLConfig) -> dict | None:
     return result
 
 
+def worlds_holding(task: str, worlds: tuple[str, ...]) -> tuple[str, ...]:
+    """Those of ``worlds`` where ``task`` can be set (``doorway`` needs two named rooms)."""
+    held = []
+    for world in worlds:
+        try:
+            LaserTaskEnv(task, load_world(world))
+        except InputError:
+            continue
+        held.append(world)
+    return tuple(held)
+
+
 def check_inputs(config: RLConfig) -> None:
     """Every InputError the grid can meet, before any agent trains: a world that does not load
     or lacks the task's named rooms, a missing or unfitting encoder run."""
@@ -343,6 +355,7 @@ def aggregate(config: RLConfig, agents: dict[str, list[dict]]) -> dict:
         "transfer": list(config.transfer),
         "config": config.agent_config(),
         "version": __version__,
+        "headline": HEADLINE,
         "results": results,
         "verdicts": {k: verdicts(results, k) for k in ("success", "success_stochastic")},
     }
