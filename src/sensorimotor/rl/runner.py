@@ -34,6 +34,7 @@ from sensorimotor.errors import InputError
 from sensorimotor.files import atomic_path, read_json, write_text_atomic
 from sensorimotor.rl.features import FEATURES, FeatureVecEnv, load_encoder
 from sensorimotor.rl.results import HEADLINE, summary, verdicts
+from sensorimotor.rl.vec_env import TaskVecEnv
 from sensorimotor.sim.world import load_world
 from sensorimotor.version import __version__
 
@@ -100,13 +101,22 @@ class RLConfig:
         return d
 
 
-def make_env(config: RLConfig, world: str, features: str, encoder, n: int, seed: int):
-    """``n`` task environments in ``world`` behind ``FeatureVecEnv`` (seeded ``seed + i``)."""
+def make_env(
+    config: RLConfig, world: str, features: str, encoder, n: int, seed: int, batched: bool = True
+):
+    """``n`` task environments in ``world`` behind ``FeatureVecEnv`` (seeded ``seed + i``):
+    stepped together (``vec_env.TaskVecEnv``: one simulator call a step), or with
+    ``batched=False`` one by one (``DummyVecEnv`` over ``gym.make``; the same numbers,
+    slower: ``benchmarks/bench_rl.py``)."""
     load_world(world)  # a bad world name: InputError before any environment is made
-    venv = make_vec_env(
-        TASK_IDS[config.task], n_envs=n, seed=seed, env_kwargs={"world": world},
-        vec_env_cls=DummyVecEnv,
-    )  # fmt: skip
+    if batched:
+        venv = TaskVecEnv(config.task, world, n)
+        venv.seed(seed)
+    else:
+        venv = make_vec_env(
+            TASK_IDS[config.task], n_envs=n, seed=seed, env_kwargs={"world": world},
+            vec_env_cls=DummyVecEnv,
+        )  # fmt: skip
     return FeatureVecEnv(venv, features, encoder)
 
 
