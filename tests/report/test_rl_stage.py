@@ -91,10 +91,10 @@ def hand_made(scores: dict[str, list[float]]) -> dict:
 def test_the_verdicts_hold_and_fail_by_their_thresholds():
     good = {"pose": [0.8, 0.9, 0.7], "random": [0.1, 0.0, 0.1], "raw": [0.2, 0.3, 0.1],
             "sm": [0.5, 0.6, 0.4], "rec-sm": [0.5, 0.7, 0.4]}  # fmt: skip
-    assert [held for _, held in rl_stage.verdict_lines(hand_made(good))] == [True, True]
+    assert [held for _, held in rl_stage.verdict_lines(hand_made(good))] == [True, True, True]
     bad = {**good, "random": [0.8, 0.9, 0.6], "sm": [0.2, 0.2, 0.2]}  # sm - raw: 0, -0.1, +0.1
     lines = rl_stage.verdict_lines(hand_made(bad))
-    assert [held for _, held in lines] == [False, False]
+    assert [held for _, held in lines] == [False, False, False]
     assert "does NOT hold" in lines[0][0]
     assert "NOT supported" in lines[1][0]
     two = {f: v[:2] for f, v in good.items()}  # 2 seeds: not judged

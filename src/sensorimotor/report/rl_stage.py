@@ -152,9 +152,10 @@ def _diff(d: dict) -> str:
 
 
 def verdict_lines(rl: dict, score: str = HEADLINE) -> list[tuple[str, bool | None]]:
-    """The two verdicts of one task's ``rl.json`` on ``score``, each a sentence and whether it
-    holds (None: not judged): the sanity check "pose clearly above random" and the paper's
-    expectation. Both read the 95 % bootstrap CI of paired per-seed differences
+    """The verdicts of one task's ``rl.json`` on ``score``, each a sentence and whether it
+    holds (None: not judged): the sanity check "pose clearly above random", the paper's
+    expectation, and whether the motor-trained encoders beat the untrained one too (else the
+    help is not learned). All read the 95 % bootstrap CI of paired per-seed differences
     (``rl.results.verdicts``); with fewer than ``MIN_SEEDS`` seeds neither is judged."""
     how = SCORES.get(score, score)
     v = rl["verdicts"][score]
@@ -179,6 +180,17 @@ def verdict_lines(rl: dict, score: str = HEADLINE) -> list[tuple[str, bool | Non
         diffs = ", ".join(f"{f} - raw {_diff(d)}" for f, d in motors["differences"].items())
         lines.append(
             (f"{CLAIM} ({how} success; {THRESHOLD}): {held}: {diffs}.", motors["supported"])
+        )
+    learned = v.get("motors_beat_random", {"supported": None})
+    if learned["supported"] is not None:
+        held = "holds" if learned["supported"] else "does NOT hold"
+        diffs = ", ".join(f"{f} - random {_diff(d)}" for f, d in learned["differences"].items())
+        lines.append(
+            (
+                f"the motor-trained encoders also beat the untrained one, random ({how} "
+                f"success; the same threshold against random): {held}: {diffs}.",
+                learned["supported"],
+            )
         )
     return lines
 
