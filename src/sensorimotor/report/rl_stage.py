@@ -211,7 +211,8 @@ def _task_blocks(rep, task: str, entry: dict) -> list[Block]:
     blocks = [
         h(3, f"{task} in {rl['world']}"),
         p(
-            f"Final success rate over {rl['seeds']} seeds (mean [95 % bootstrap CI], IQM) after "
+            f"Final success rate over {rl['seeds']} seed{'s' * (rl['seeds'] != 1)} (mean "
+            f"[95 % bootstrap CI], IQM) after "
             f"{rl['steps']:,} steps, {rl['eval_episodes']} evaluation episodes each; transfer: "
             f"the same policies, unchanged, in the other worlds (means). From "
             f"`{entry['folder']}/rl.json`."
@@ -241,7 +242,8 @@ def section(rep, found: dict) -> list[Block]:
             f"{found['steps']:,} steps each. Headline score: the success rate of the policy "
             "PPO trains, with its actions sampled (stochastic); the mean action "
             "(deterministic) is shown beside it: it rewards reflexes such as driving "
-            "straight and fails even the oracle on corner (DESIGN.md, Reinforcement learning)."
+            "straight, and can fail the sanity check that the oracle beats an untrained "
+            "encoder (DESIGN.md, Reinforcement learning)."
         ),
     ]
     for task, entry in found["tasks"].items():
