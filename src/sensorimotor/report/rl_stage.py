@@ -200,6 +200,7 @@ def _task_blocks(rep, task: str, entry: dict) -> list[Block]:
     worlds = rl["transfer"]
     header = ["features", "success, stochastic (headline)", "IQM", "success, deterministic"]
     header += [f"{w}: stoch. / det." for w in worlds]
+    header += ["return: stoch. / det."]
     rows = []
     for name, r in rl["results"].items():
         row = [name, _ci(r[HEADLINE]), f"{r[HEADLINE]['iqm']:.2f}", _ci(r["success"])]
@@ -207,6 +208,7 @@ def _task_blocks(rep, task: str, entry: dict) -> list[Block]:
             f"{r['transfer'][w][HEADLINE]['mean']:.2f} / {r['transfer'][w]['success']['mean']:.2f}"
             for w in worlds
         ]
+        row.append(f"{r['return_stochastic']['mean']:.2f} / {r['return']['mean']:.2f}")
         rows.append(row)
     blocks = [
         h(3, f"{task} in {rl['world']}"),
@@ -214,7 +216,8 @@ def _task_blocks(rep, task: str, entry: dict) -> list[Block]:
             f"Final success rate over {rl['seeds']} seed{'s' * (rl['seeds'] != 1)} (mean "
             f"[95 % bootstrap CI], IQM) after "
             f"{rl['steps']:,} steps, {rl['eval_episodes']} evaluation episodes each; transfer: "
-            f"the same policies, unchanged, in the other worlds (means). From "
+            f"the same policies, unchanged, in the other worlds (means); the mean return in "
+            f"{rl['world']}. From "
             f"`{entry['folder']}/rl.json`."
         ),
         table(header, rows),
