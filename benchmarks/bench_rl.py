@@ -3,10 +3,13 @@
 Two tables, each with a ratio to a reference measured in the same run:
 
 1. Environment steps per second (random actions) of ``FeatureVecEnv`` over ``--envs``
-   corner-task environments, one batched encoder call a step, against the plain single
-   environment (``gym.make``, no features) stepped alone.
-2. PPO (``sensorimotor.rl.runner`` settings, no evaluation) steps per second for each feature
-   set, against PPO on ``raw`` (the issue's target: ``rec-sm`` at no less than half of it).
+   corner-task environments, one batched encoder call a step, the environments stepped one by
+   one (``DummyVecEnv`` over ``gym.make``) and together (``rl.vec_env.TaskVecEnv``: one
+   simulator call a step), against the plain single environment (``gym.make``, no features)
+   stepped alone.
+2. PPO (``sensorimotor.rl.runner`` settings, batched environments, no evaluation) steps per
+   second for each feature set, against PPO on ``raw`` (the issue's target: ``rec-sm`` at no
+   less than half of it); and PPO on ``raw`` with the environments stepped one by one.
 
 Speeds are per second of this process's CPU time (``time.process_time``, one thread): on a
 machine shared with other work, wall time measures the neighbours too.
@@ -47,9 +50,9 @@ def plain_env_speed(steps: int) -> float:
     return steps / (time.process_time() - t0)
 
 
-def feature_env_speed(features: str, steps: int, n: int) -> float:
+def feature_env_speed(features: str, steps: int, n: int, batched: bool) -> float:
     encoder, _ = load_encoder(features, RUNS, "rooms1", 0)
-    venv = make_env(RLConfig(), "rooms1", features, encoder, n, 0)
+    venv = make_env(RLConfig(), "rooms1", features, encoder, n, 0, batched)
     venv.reset()
     actions = np.random.default_rng(0).uniform(-1, 1, (steps // n, n, 2)).astype(np.float32)
     t0 = time.process_time()
@@ -58,10 +61,10 @@ def feature_env_speed(features: str, steps: int, n: int) -> float:
     return (steps // n) * n / (time.process_time() - t0)
 
 
-def ppo_speed(features: str, steps: int) -> float:
+def ppo_speed(features: str, steps: int, batched: bool = True) -> float:
     config = RLConfig()
     encoder, _ = load_encoder(features, RUNS, "rooms1", 0)
-    venv = make_env(config, "rooms1", features, encoder, config.n_envs, 0)
+    venv = make_env(config, "rooms1", features, encoder, config.n_envs, 0, batched)
     model = PPO("MlpPolicy", venv, seed=0, device="cpu", **config.ppo)
     t0 = time.process_time()
     model.learn(total_timesteps=steps)
@@ -80,12 +83,19 @@ def main() -> None:
 
     plain = plain_env_speed(args.steps)
     table = Table(title=f"environment steps/s, corner in rooms1, {args.envs} environments")
-    for col in ("features", "steps/s", "ratio to the plain env"):
+    for col in ("features", "one by one", "ratio", "batched", "ratio to the plain env"):
         table.add_column(col, justify="right")
-    table.add_row("plain env (no features, 1 env)", f"{plain:,.0f}", "1.00")
+    table.add_row("plain env (no features, 1 env)", f"{plain:,.0f}", "1.00", "", "")
     for f in FEATURES:
-        speed = feature_env_speed(f, args.steps, args.envs)
-        table.add_row(f, f"{speed:,.0f}", f"{speed / plain:.2f}")
+        alone = feature_env_speed(f, args.steps, args.envs, batched=False)
+        together = feature_env_speed(f, args.steps, args.envs, batched=True)
+        table.add_row(
+            f,
+            f"{alone:,.0f}",
+            f"{alone / plain:.2f}",
+            f"{together:,.0f}",
+            f"{together / plain:.2f}",
+        )
     console.print(table)
 
     table = Table(title=f"PPO steps/s ({args.ppo_steps:,} steps, no evaluation)")
@@ -95,6 +105,8 @@ def main() -> None:
     for f in FEATURES:
         speed = raw if f == "raw" else ppo_speed(f, args.ppo_steps)
         table.add_row(f, f"{speed:,.0f}", f"{speed / raw:.2f}")
+    slow = ppo_speed("raw", args.ppo_steps, batched=False)
+    table.add_row("raw, one by one", f"{slow:,.0f}", f"{slow / raw:.2f}")
     console.print(table)
 
 

@@ -23,7 +23,7 @@ LAYERS = {
     "sim": {"errors", "files", "version"},
     "learn": {"errors", "files", "version", "sim"},
     "analysis": {"errors", "files", "version", "sim", "learn"},
-    "report": {"errors", "files", "version", "sim", "learn", "analysis"},
+    "report": {"errors", "files", "version", "sim", "learn", "analysis", "rl"},
     "envs": {"errors", "sim"},
     "rl": {"errors", "files", "version", "sim", "learn", "envs"},
     "cli": {"errors", "files", "version", "sim", "learn", "analysis", "report", "rl"},

@@ -33,7 +33,8 @@ from sensorimotor.envs import TASK_IDS, LaserTaskEnv
 from sensorimotor.errors import InputError
 from sensorimotor.files import atomic_path, read_json, write_text_atomic
 from sensorimotor.rl.features import FEATURES, FeatureVecEnv, load_encoder
-from sensorimotor.rl.results import summary, verdicts
+from sensorimotor.rl.results import HEADLINE, summary, verdicts
+from sensorimotor.rl.vec_env import TaskVecEnv
 from sensorimotor.sim.world import load_world
 from sensorimotor.version import __version__
 
@@ -100,13 +101,22 @@ class RLConfig:
         return d
 
 
-def make_env(config: RLConfig, world: str, features: str, encoder, n: int, seed: int):
-    """``n`` task environments in ``world`` behind ``FeatureVecEnv`` (seeded ``seed + i``)."""
+def make_env(
+    config: RLConfig, world: str, features: str, encoder, n: int, seed: int, batched: bool = True
+):
+    """``n`` task environments in ``world`` behind ``FeatureVecEnv`` (seeded ``seed + i``):
+    stepped together (``vec_env.TaskVecEnv``: one simulator call a step), or with
+    ``batched=False`` one by one (``DummyVecEnv`` over ``gym.make``; the same numbers,
+    slower: ``benchmarks/bench_rl.py``)."""
     load_world(world)  # a bad world name: InputError before any environment is made
-    venv = make_vec_env(
-        TASK_IDS[config.task], n_envs=n, seed=seed, env_kwargs={"world": world},
-        vec_env_cls=DummyVecEnv,
-    )  # fmt: skip
+    if batched:
+        venv = TaskVecEnv(config.task, world, n)
+        venv.seed(seed)
+    else:
+        venv = make_vec_env(
+            TASK_IDS[config.task], n_envs=n, seed=seed, env_kwargs={"world": world},
+            vec_env_cls=DummyVecEnv,
+        )  # fmt: skip
     return FeatureVecEnv(venv, features, encoder)
 
 
@@ -239,6 +249,18 @@ def load_agent(path: Path, config: RLConfig) -> dict | None:
     return result
 
 
+def worlds_holding(task: str, worlds: tuple[str, ...]) -> tuple[str, ...]:
+    """Those of ``worlds`` where ``task`` can be set (``doorway`` needs two named rooms)."""
+    held = []
+    for world in worlds:
+        try:
+            LaserTaskEnv(task, load_world(world))
+        except InputError:
+            continue
+        held.append(world)
+    return tuple(held)
+
+
 def check_inputs(config: RLConfig) -> None:
     """Every InputError the grid can meet, before any agent trains: a world that does not load
     or lacks the task's named rooms, a missing or unfitting encoder run."""
@@ -343,6 +365,7 @@ def aggregate(config: RLConfig, agents: dict[str, list[dict]]) -> dict:
         "transfer": list(config.transfer),
         "config": config.agent_config(),
         "version": __version__,
+        "headline": HEADLINE,
         "results": results,
         "verdicts": {k: verdicts(results, k) for k in ("success", "success_stochastic")},
     }

@@ -169,6 +169,34 @@ def apply_motor(x, y, heading, d, r):
 
 
 @numba.njit(cache=True)
+def move_many(segments, poses, d, r, ahead_range, margin, angles, max_range, readings, hit):
+    """One motor step of each of N robots in one call, as ``LaserWorldEnv.step`` takes it
+    (``envs.laser_world``: the same ray caster, the same motion, so the same numbers):
+    robot i's translation ``d[i]`` stops ``margin`` short of the wall ahead (cast up to
+    ``ahead_range``; ``hit[i]`` says it did), then it turns by ``r[i]``; ``poses`` (N, 3) is
+    updated in place and ``readings`` (N, R) gets the rays ``angles`` (R,) at the new pose.
+
+    The vectorised environments of ``sensorimotor.rl`` step every environment through it.
+    """
+    ahead = np.empty(1)
+    straight = np.zeros(1)
+    for i in range(poses.shape[0]):
+        x = poses[i, 0]
+        y = poses[i, 1]
+        heading = poses[i, 2]
+        cast_rays(segments, x, y, heading, straight, ahead_range, ahead)
+        step = d[i]
+        hit[i] = step > ahead[0] - margin
+        if hit[i]:
+            step = max(ahead[0] - margin, 0.0)
+        x, y, heading = apply_motor(x, y, heading, step, r[i])
+        poses[i, 0] = x
+        poses[i, 1] = y
+        poses[i, 2] = heading
+        cast_rays(segments, x, y, heading, angles, max_range, readings[i])
+
+
+@numba.njit(cache=True)
 def _cast(segments, dims, start, items, stamp, ray_id, x, y, dx, dy, max_range, out):
     """The one door to the ray caster: the walls' grid (``sim.grid``) when the world has one
     (``dims[1] > 0``), else the all-walls loop; the same readings either way. Returns the next

@@ -1,0 +1,254 @@
+"""``reproduce --experiment rl``: do the reproduction's own representations help an agent act?
+
+The paper's conclusion plans a reinforcement-learning test of the representations. This
+experiment runs ``sensorimotor rl``'s grid (``rl.runner.run_grid``: the same PPO on every
+feature set, many seeds, bootstrap statistics) on the three tasks in Rooms1, with the encoders
+this reproduction trained on Rooms1 (``rep.run_dir("rooms1", model, seed)``; RL seed k on
+encoder seed k), and evaluates every final policy unchanged in Square and Rooms2 (those that
+can hold the task: ``doorway`` needs two named rooms, Square names one). Its agents are jobs of
+the reproduction's job runner; each task's grid lives in ``OUT/rl/{task}__{key}/``, ``key`` a
+hash of everything its agents depend on (the PPO and evaluation settings, the bytes of every
+encoder's weights, the package version): a rerun trains nothing, a retrained encoder gets new
+agents.
+
+The report's headline score is the *stochastic* policy's success (``rl.results.HEADLINE``:
+DESIGN.md says why); the deterministic one is shown beside it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+from sensorimotor.errors import InputError
+from sensorimotor.files import file_hash
+from sensorimotor.report.document import Block, h, image, p, table
+from sensorimotor.rl.results import CLAIM, HEADLINE, MIN_SEEDS, THRESHOLD
+from sensorimotor.version import __version__
+
+TASKS = ("corner", "doorway", "explore")
+FEATURES = ("pose", "raw", "s", "sm", "rec-s", "rec-sm", "random")
+WORLD = "rooms1"  # where the agents learn, on encoders trained there
+TRANSFER = ("square", "rooms2")  # where the final policies are also evaluated
+ENCODERS = ("s", "sm", "rec-s", "rec-sm")  # the feature sets read from the reproduction's runs
+
+
+@dataclass(frozen=True)
+class Plan:
+    """How big the grid is at one reproduction scale (seeds: the reproduction's own)."""
+
+    steps: int
+    eval_every: int
+    eval_episodes: int
+    ppo: dict | None = None  # PPO arguments other than RLConfig's (None: RLConfig's)
+
+
+PLANS = {
+    # a smoke test of the pipeline: one 512-step rollout per agent, 10 evaluation episodes
+    "smoke": Plan(512, 512, 10, {"n_steps": 64, "batch_size": 64, "n_epochs": 2}),
+    "quick": Plan(40_000, 20_000, 50),  # what docs/results/rl/rooms1_grid ran
+    "paper": Plan(100_000, 25_000, 50),
+}
+
+
+def plan_for(scale_name: str) -> Plan:
+    """The grid's size at a reproduction scale (an unknown scale: ``quick``'s)."""
+    return PLANS.get(scale_name, PLANS["quick"])
+
+
+def configs(rep) -> dict:
+    """``{task: RLConfig}`` of the grid: encoders from ``rep``'s Rooms1 runs, sized by
+    ``rep.scale``. InputError (one line) when Rooms1 was not trained or a run is missing."""
+    from sensorimotor.rl.features import run_folder
+    from sensorimotor.rl.runner import RLConfig, worlds_holding
+
+    if WORLD not in tuple(rep.worlds):
+        raise InputError(
+            "experiment rl: needs the encoders trained on rooms1; add rooms1 to --worlds"
+        )
+    runs = Path(rep.run_dir(WORLD, ENCODERS[0], 0)).parent
+    for model in ENCODERS:
+        for seed in range(rep.seeds):
+            folder = Path(rep.run_dir(WORLD, model, seed))
+            if folder != run_folder(runs, WORLD, model, seed) or not folder.is_dir():
+                raise InputError(f"experiment rl: no {model} run on {WORLD} at {folder}")
+    plan = plan_for(rep.scale.name)
+    ppo = {**RLConfig().ppo, **(plan.ppo or {})}
+    settings = {
+        "world": WORLD, "features": FEATURES, "seeds": rep.seeds, "steps": plan.steps,
+        "runs": str(runs), "trained_on": WORLD, "eval_every": plan.eval_every,
+        "eval_episodes": plan.eval_episodes, "ppo": ppo,
+    }  # fmt: skip
+    return {
+        task: RLConfig(task=task, transfer=worlds_holding(task, TRANSFER), **settings)
+        for task in TASKS
+    }
+
+
+def grid_key(config) -> str:
+    """A short hash of what a task's agents depend on: their settings, every encoder's
+    weights (by bytes), the package version."""
+    from sensorimotor.rl.features import run_folder
+
+    weights = {
+        f"{model}__s{seed}": file_hash(run_folder(config.runs, WORLD, model, seed) / "model.pt")
+        for model in ENCODERS
+        for seed in range(config.seeds)
+    }
+    described = {
+        "config": {**config.agent_config(), "runs": None},  # where the runs are: not an input
+        "features": list(config.features),
+        "seeds": config.seeds,
+        "weights": weights,
+        "version": __version__,
+    }
+    return hashlib.sha256(json.dumps(described, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def run(ctx) -> dict:
+    """Every task's grid (cached), its agents as jobs of ``ctx.run_jobs``; the numbers."""
+    from sensorimotor.rl import check_extra
+
+    check_extra()
+    from sensorimotor.report.backend import run_all
+    from sensorimotor.rl.runner import run_grid
+
+    tasks = {}
+    for task, config in configs(ctx.rep).items():
+        folder = ctx.dir / f"{task}__{grid_key(config)}"
+
+        def run_agents(jobs, task=task):
+            ctx.log(f"rl {task}: {len(jobs)} agents to train")
+            return run_all(ctx.run_jobs, ctx.workers, jobs, ctx.progress)
+
+        rl = run_grid(config, folder, run_agents=run_agents)
+        for r in rl["results"].values():
+            del r["curve"]  # in the folder's rl.json and figure
+        tasks[task] = {"folder": folder.relative_to(ctx.rep.out).as_posix(), "rl": rl}
+    plan = plan_for(ctx.rep.scale.name)
+    return {
+        "headline": HEADLINE,
+        "world": WORLD,
+        "seeds": ctx.rep.seeds,
+        "steps": plan.steps,
+        "eval_episodes": plan.eval_episodes,
+        "tasks": tasks,
+    }
+
+
+# --- the report section ----------------------------------------------------------------------
+
+SCORES = {HEADLINE: "stochastic", "success": "deterministic"}
+
+
+def _ci(s: dict) -> str:
+    return f"{s['mean']:.2f} [{s['ci_low']:.2f}, {s['ci_high']:.2f}]"
+
+
+def _diff(d: dict) -> str:
+    return f"{d['mean']:+.2f} [{d['ci_low']:+.2f}, {d['ci_high']:+.2f}]"
+
+
+def verdict_lines(rl: dict, score: str = HEADLINE) -> list[tuple[str, bool | None]]:
+    """The verdicts of one task's ``rl.json`` on ``score``, each a sentence and whether it
+    holds (None: not judged): the sanity check "pose clearly above random", the paper's
+    expectation, and whether the motor-trained encoders beat the untrained one too (else the
+    help is not learned). All read the 95 % bootstrap CI of paired per-seed differences
+    (``rl.results.verdicts``); with fewer than ``MIN_SEEDS`` seeds neither is judged."""
+    how = SCORES.get(score, score)
+    v = rl["verdicts"][score]
+    if rl["seeds"] < MIN_SEEDS:
+        why = f"{rl['seeds']} seed(s): no verdict below {MIN_SEEDS} seeds"
+        return [(f"pose clearly above random ({how}): {why}.", None),
+                (f"{CLAIM} ({how}): {why}.", None)]  # fmt: skip
+    lines = []
+    pose = v["pose_beats_random"]
+    if pose["supported"] is not None:
+        held = "holds" if pose["supported"] else "does NOT hold"
+        lines.append(
+            (
+                f"pose clearly above random ({how} success; threshold: the 95 % CI of pose "
+                f"minus random, paired by seed, above 0): {held}, {_diff(pose['difference'])}.",
+                pose["supported"],
+            )
+        )
+    motors = v["motors_help"]
+    if motors["supported"] is not None:
+        held = "supported" if motors["supported"] else "NOT supported"
+        diffs = ", ".join(f"{f} - raw {_diff(d)}" for f, d in motors["differences"].items())
+        lines.append(
+            (f"{CLAIM} ({how} success; {THRESHOLD}): {held}: {diffs}.", motors["supported"])
+        )
+    learned = v.get("motors_beat_random", {"supported": None})
+    if learned["supported"] is not None:
+        held = "holds" if learned["supported"] else "does NOT hold"
+        diffs = ", ".join(f"{f} - random {_diff(d)}" for f, d in learned["differences"].items())
+        lines.append(
+            (
+                f"the motor-trained encoders also beat the untrained one, random ({how} "
+                f"success; the same threshold against random): {held}: {diffs}.",
+                learned["supported"],
+            )
+        )
+    return lines
+
+
+def _task_blocks(rep, task: str, entry: dict) -> list[Block]:
+    rl = entry["rl"]
+    worlds = rl["transfer"]
+    header = ["features", "success, stochastic (headline)", "IQM", "success, deterministic"]
+    header += [f"{w}: stoch. / det." for w in worlds]
+    header += ["return: stoch. / det."]
+    rows = []
+    for name, r in rl["results"].items():
+        row = [name, _ci(r[HEADLINE]), f"{r[HEADLINE]['iqm']:.2f}", _ci(r["success"])]
+        row += [
+            f"{r['transfer'][w][HEADLINE]['mean']:.2f} / {r['transfer'][w]['success']['mean']:.2f}"
+            for w in worlds
+        ]
+        row.append(f"{r['return_stochastic']['mean']:.2f} / {r['return']['mean']:.2f}")
+        rows.append(row)
+    blocks = [
+        h(3, f"{task} in {rl['world']}"),
+        p(
+            f"Final success rate over {rl['seeds']} seed{'s' * (rl['seeds'] != 1)} (mean "
+            f"[95 % bootstrap CI], IQM) after "
+            f"{rl['steps']:,} steps, {rl['eval_episodes']} evaluation episodes each; transfer: "
+            f"the same policies, unchanged, in the other worlds (means); the mean return in "
+            f"{rl['world']}. From "
+            f"`{entry['folder']}/rl.json`."
+        ),
+        table(header, rows),
+        image(
+            Path(rep.out) / entry["folder"] / "rl.png",
+            f"{task}: learning curves (solid: deterministic, dashed: stochastic) and final "
+            "success per feature set, in Rooms1 and the transfer worlds",
+        ),
+    ]
+    for score in SCORES:
+        blocks += [p(text) for text, _ in verdict_lines(rl, score)]
+    return blocks
+
+
+def section(rep, found: dict) -> list[Block]:
+    """Per task: success per feature set with its CI, transfer, learning curves, verdicts."""
+    blocks = [
+        h(2, "Does a representation help an agent act? (reinforcement learning)"),
+        p(
+            "The paper's conclusion plans to use the learned representations in a "
+            "reinforcement-learning task. The same PPO (stable-baselines3) learns from each "
+            "feature set: the true pose (oracle), the raw readings, the z_s of this "
+            "reproduction's frozen Rooms1 encoders (RL seed k on encoder seed k), and an "
+            f"untrained Recurrent-SM encoder (random), {found['seeds']} seed(s), "
+            f"{found['steps']:,} steps each. Headline score: the success rate of the policy "
+            "PPO trains, with its actions sampled (stochastic); the mean action "
+            "(deterministic) is shown beside it: it rewards reflexes such as driving "
+            "straight, and can fail the sanity check that the oracle beats an untrained "
+            "encoder (DESIGN.md, Reinforcement learning)."
+        ),
+    ]
+    for task, entry in found["tasks"].items():
+        blocks += _task_blocks(rep, task, entry)
+    return blocks

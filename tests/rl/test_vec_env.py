@@ -1,0 +1,59 @@
+"""The batched task environments give, bit for bit, what stable-baselines3's ``DummyVecEnv``
+over ``gym.make`` of the same task gives: observations, rewards, ends, successes, the
+terminal observation and truncation flag, the next episode's start."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+pytest.importorskip("stable_baselines3")
+
+from stable_baselines3.common.monitor import Monitor
+from stable_baselines3.common.vec_env import DummyVecEnv
+
+from sensorimotor.envs import TASK_IDS
+from sensorimotor.rl.vec_env import TaskVecEnv
+
+
+@pytest.mark.parametrize(
+    ("task", "world", "budget", "steps"),
+    [
+        ("corner", "rooms1", 60, 1500),
+        ("doorway", "rooms1", 40, 300),
+        ("explore", "rooms2", 25, 100),
+    ],
+)
+def test_batched_environments_step_as_the_plain_ones(task, world, budget, steps):
+    n = 6
+    plain = DummyVecEnv(
+        [lambda: Monitor(gym.make(TASK_IDS[task], world=world, max_episode_steps=budget))] * n
+    )
+    batched = TaskVecEnv(task, world, n, budget)
+    plain.seed(3)
+    batched.seed(3)
+    np.testing.assert_array_equal(plain.reset(), batched.reset())
+    actions = np.random.default_rng(0).uniform(-1.2, 1.2, (steps, n, 2)).astype(np.float32)
+    ends = successes = 0
+    for a in actions:  # outside the box too: clipped alike
+        o1, r1, d1, i1 = plain.step(a)
+        o2, r2, d2, i2 = batched.step(a)
+        np.testing.assert_array_equal(o1, o2)
+        np.testing.assert_array_equal(r1, r2)
+        np.testing.assert_array_equal(d1, d2)
+        for k, (x, y) in enumerate(zip(i1, i2, strict=True)):
+            np.testing.assert_array_equal(x["pose"], y["pose"])
+            assert (x["is_success"], x["coverage"]) == (y["is_success"], y["coverage"])
+            if d1[k]:
+                np.testing.assert_array_equal(x["terminal_observation"], y["terminal_observation"])
+                assert x["TimeLimit.truncated"] == y["TimeLimit.truncated"]
+                assert x["episode"]["l"] == y["episode"]["l"]
+                np.testing.assert_array_equal(
+                    plain.reset_infos[k]["pose"], batched.reset_infos[k]["pose"]
+                )
+                ends += 1
+                successes += x["is_success"]
+    assert ends > n  # every environment ended an episode and went on
+    if task != "explore":  # random actions reach no 40 % coverage in 25 steps
+        assert successes > 0  # episodes ended by the task, not only by the budget
