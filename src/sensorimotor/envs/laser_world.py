@@ -34,9 +34,9 @@ class LaserWorldEnv(gym.Env[np.ndarray, np.ndarray]):
     the environment records the same rows as ``sensorimotor generate`` (see ``paper_policy``).
 
     The physics is the package's simulation core (``sensorimotor.sim.core``, compiled with numba):
-    ``sim.cast_rays`` for the readings and for the collision check, ``sim.apply_motor`` for the
-    motion, ``sim.sample_start`` for the start pose. Worlds are ``square``, ``rooms1``,
-    ``rooms2`` (50 x 50, paper Fig. 1) or any TOML world file.
+    ``sim.cast_rays`` for the readings, ``sim.move`` for the motion (``sim.apply_motor``, stopped
+    short of the wall ahead by the same ray caster), ``sim.sample_start`` for the start pose.
+    Worlds are ``square``, ``rooms1``, ``rooms2`` (50 x 50, paper Fig. 1) or any TOML world file.
 
     ## Action Space
 
@@ -176,7 +176,6 @@ class LaserWorldEnv(gym.Env[np.ndarray, np.ndarray]):
         self.angles = np.asarray(layout.angles, dtype=np.float64)  # (R,) rad from heading
         self.max_range = layout.max_range  # units
         self.ahead_range = math.hypot(self.world.width, self.world.height)  # sees any wall
-        self._ahead_angle = np.zeros(1)  # (1,) the collision check's one ray, along the heading
 
         self.action_space = spaces.Box(
             low=np.array([0.0, -MAX_TURN]), high=np.array([MAX_STEP, MAX_TURN]), dtype=np.float64
@@ -223,17 +222,10 @@ class LaserWorldEnv(gym.Env[np.ndarray, np.ndarray]):
             action = action + self.np_random.normal(0.0, self.motor_noise, 2)
         d = min(max(float(action[0]), 0.0), MAX_STEP)  # translation (units)
         r = float(action[1])  # rotation (rad)
-        x, y, heading = self.pose
-
-        # Collision: the distance to the first wall straight ahead, by the same ray caster.
-        ahead = sim.cast_rays(
-            self.segments, x, y, heading, self._ahead_angle, self.ahead_range, np.empty(1)
-        )[0]
-        collision = d > ahead - WALL_MARGIN
-        if collision:
-            d = max(ahead - WALL_MARGIN, 0.0)
-
-        self.pose = sim.apply_motor(x, y, heading, d, r)
+        # Collision: d stops WALL_MARGIN short of the first wall straight ahead (the same
+        # ray caster as the sensors, cast up to ahead_range); then the robot turns by r.
+        *pose, collision = sim.move(self.segments, *self.pose, d, r, self.ahead_range, WALL_MARGIN)
+        self.pose = tuple(pose)
         return self._observe(), 0.0, False, False, self._info(bool(collision))
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):

@@ -169,27 +169,29 @@ def apply_motor(x, y, heading, d, r):
 
 
 @numba.njit(cache=True)
-def move_many(segments, poses, d, r, ahead_range, margin, angles, max_range, readings, hit):
-    """One motor step of each of N robots in one call, as ``LaserWorldEnv.step`` takes it
-    (``envs.laser_world``: the same ray caster, the same motion, so the same numbers):
-    robot i's translation ``d[i]`` stops ``margin`` short of the wall ahead (cast up to
-    ``ahead_range``; ``hit[i]`` says it did), then it turns by ``r[i]``; ``poses`` (N, 3) is
-    updated in place and ``readings`` (N, R) gets the rays ``angles`` (R,) at the new pose.
-
-    The vectorised environments of ``sensorimotor.rl`` step every environment through it.
-    """
+def move(segments, x, y, heading, d, r, ahead_range, margin):
+    """One motor step of the Gymnasium environment's robot (``envs.laser_world``): the
+    translation ``d`` stops ``margin`` short of the first wall straight ahead (cast up to
+    ``ahead_range``), then the robot turns by ``r``. Returns (x, y, heading, hit a wall)."""
     ahead = np.empty(1)
-    straight = np.zeros(1)
+    cast_rays(segments, x, y, heading, np.zeros(1), ahead_range, ahead)
+    hit = d > ahead[0] - margin
+    if hit:
+        d = max(ahead[0] - margin, 0.0)
+    x, y, heading = apply_motor(x, y, heading, d, r)
+    return x, y, heading, hit
+
+
+@numba.njit(cache=True)
+def move_many(segments, poses, d, r, ahead_range, margin, angles, max_range, readings, hit):
+    """``move`` for each of N robots in one call, then their readings: ``poses`` (N, 3) is
+    updated in place, ``hit`` (N,) says who met a wall, ``readings`` (N, R) gets the rays
+    ``angles`` (R,) at the new poses. The vectorised environments of ``sensorimotor.rl``
+    step every environment through it."""
     for i in range(poses.shape[0]):
-        x = poses[i, 0]
-        y = poses[i, 1]
-        heading = poses[i, 2]
-        cast_rays(segments, x, y, heading, straight, ahead_range, ahead)
-        step = d[i]
-        hit[i] = step > ahead[0] - margin
-        if hit[i]:
-            step = max(ahead[0] - margin, 0.0)
-        x, y, heading = apply_motor(x, y, heading, step, r[i])
+        x, y, heading, hit[i] = move(
+            segments, poses[i, 0], poses[i, 1], poses[i, 2], d[i], r[i], ahead_range, margin
+        )
         poses[i, 0] = x
         poses[i, 1] = y
         poses[i, 2] = heading
