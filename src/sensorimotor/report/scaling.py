@@ -38,7 +38,7 @@ from sensorimotor.files import file_hash, write_json_atomic
 from sensorimotor.learn.evaluate import mean_sd
 from sensorimotor.learn.models import MODEL_KINDS
 from sensorimotor.learn.runs import run_name
-from sensorimotor.report.scaling_report import KINDS, finite, section, verdicts
+from sensorimotor.report.scaling_report import KINDS, finite, plot_errors, section, verdicts
 from sensorimotor.report.workers import Job, report
 from sensorimotor.version import __version__
 
@@ -492,6 +492,7 @@ def run(ctx) -> dict:
     """The experiment at the reproduction's scale (``reproduce``'s hook)."""
     size = Size.of(ctx.rep)
     found = run_conditions(ctx, size, conditions(), getattr(ctx.rep, "device", "cpu"))
+    plot_errors(found["conditions"], ctx.dir / "errors.png")
     ctx.log(f"  scaling: {found['jobs']}")
     return {"size": asdict(size), "plan": PLAN, **found}
 

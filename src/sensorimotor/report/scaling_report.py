@@ -84,6 +84,37 @@ def verdicts(errors: dict[str, float], claims: dict[str, dict]) -> list[dict]:
     return out
 
 
+def plot_errors(conds: dict, path: Path) -> Path:
+    """A bar chart of each model's test error as a share of the previous-reading baseline's,
+    per condition (log scale: the models differ by factors); written atomically to ``path``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.figure import Figure
+
+    from sensorimotor.sim.plots import save_figure
+
+    fig = Figure(figsize=(7.5, 3.2), layout="constrained")
+    ax = fig.add_subplot()
+    width = 0.8 / len(MODEL_KINDS)
+    for k, kind in enumerate(MODEL_KINDS):
+        ratios = [c["errors"][kind]["mean"] / c["copy_last"] for c in conds.values()]
+        xs = [i + (k - (len(MODEL_KINDS) - 1) / 2) * width for i in range(len(conds))]
+        ax.bar(xs, ratios, width, label=SHORT[kind])
+    ax.axhline(1.0, color="k", lw=0.8, ls="--")
+    ax.set_yscale("log")
+    ax.set_xticks(range(len(conds)), list(conds))
+    ax.set_ylabel("test error / previous reading's")
+    ax.legend(ncols=4, fontsize=8)
+    save_figure(fig, path)
+    return path
+
+
+def _caps(caps: dict) -> str:
+    caps = {k: v for k, v in caps.items() if v is not None}
+    return ", ".join(f"{SHORT[k]} {v}" for k, v in caps.items()) or "none"
+
+
 def _f(v, digits: int = 2) -> str:
     return "n/a" if v is None else f"{v:.{digits}f}"
 
@@ -104,7 +135,11 @@ def condition_table(c: dict) -> Block:
     for kind in KINDS:
         claims = c["claims"][kind]
         if kind == "raw":
-            cells = [f"previous reading {c['copy_last']:.5f}", f"{c['copy_last'] / rays:.5f}", "1"]
+            cells = [
+                f"{c['copy_last']:.5f} (previous reading)",
+                f"{c['copy_last'] / rays:.5f}",
+                "1",
+            ]
             cells += [""] if seen else []
         else:
             e = c["errors"][kind]
@@ -129,7 +164,7 @@ def section(rep, found: dict) -> list[Block]:
         p(
             f"S, SM, Rec-S and Rec-SM trained in each condition below ({size['steps']:,}-step "
             f"databases, {size['seeds']} seed{'s' if size['seeds'] != 1 else ''}, patience "
-            f"{size['patience']}, epoch caps {size['max_epochs'] or 'none'}; the plans condition "
+            f"{size['patience']}, epoch caps {_caps(size['max_epochs'])}; the plans condition "
             "trains on "
             "the train splits of 10 generated plans together and is tested on 10 others). "
             "Errors are Table I's (squared error summed over the rays, readings scaled to "
@@ -149,6 +184,11 @@ def section(rep, found: dict) -> list[Block]:
             blocks.append(
                 image(picture, f"Rec-SM's clusters on the unseen plan {c['test_worlds'][0]}")
             )
+    chart = Path(rep.out) / "scaling" / "errors.png"
+    if chart.exists():
+        blocks.append(
+            image(chart, "Test error as a share of the previous-reading baseline's (dashed: 1)")
+        )
     findings = [v["finding"] for v in next(iter(conds.values()))["verdicts"]]
     rows = []
     for f in findings:
