@@ -226,7 +226,7 @@ def _analysis_job(run: str, data: str, out: str, key: str) -> dict:
 # --- the stages --------------------------------------------------------------------------------
 
 
-@dataclass
+@dataclass(frozen=True)
 class Plan:
     """Where one condition's files are, once its data stage has been planned."""
 
