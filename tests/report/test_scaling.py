@@ -4,6 +4,7 @@ on a second run), the plans' merged database, and the verdicts on hand-made numb
 from __future__ import annotations
 
 import json
+import shutil
 from types import SimpleNamespace
 
 import numpy as np
@@ -66,6 +67,19 @@ def test_merged_plans_have_each_split_the_union_of_the_plans(tmp_path):
         want = np.concatenate([db.take(split).sensors for db in dbs])
         np.testing.assert_array_equal(merged.take(split).sensors, want)
     assert "p0, p1" in merged.meta["source"]
+
+
+def test_the_plans_data_stage_is_kept_when_the_output_folder_moves(tmp_path):
+    cond = sc.Condition("pl", "two plans", plans=1)
+    size = sc.Size(1_000, 1)
+    ctx = _ctx(tmp_path / "a")
+    plans, jobs, merges = sc._data_stage(ctx, size, [cond])
+    assert [len(jobs), len(merges)] == [2, 1]
+    run_jobs(jobs + merges, 1)
+    assert len(load_database(plans[0].train_data)) == 100
+    shutil.copytree(tmp_path / "a", tmp_path / "b")
+    _, jobs, merges = sc._data_stage(_ctx(tmp_path / "b"), size, [cond])
+    assert not jobs + merges
 
 
 def _claims(corner: dict, nothing: float, behind: dict) -> dict:

@@ -273,7 +273,7 @@ def _data_stage(ctx, size: Size, conds: Sequence[Condition]) -> tuple[list[Plan]
                 need(path, _spec(cond, size.plan_steps, world, k))
                 parts[side].append(path)
         merged = root / f"{cond.name}.npz"
-        spec = [_spec(cond, size.plan_steps, str(p), 0) for p in parts["train"]]
+        spec = [_spec(cond, size.plan_steps, p.name, 0) for p in parts["train"]]  # not where
         key = key_of({"merge": spec, "version": __version__})
         if not (merged.exists() and _read_key(merged.with_suffix(".json")) == key) or any(
             job.name.startswith(f"data {cond.name}-") for job in jobs
