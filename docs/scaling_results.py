@@ -1,7 +1,7 @@
 """Copy a reproduction's scaling experiment into docs/results/scaling/: its numbers
 (scaling.json), its report section as Markdown (scaling.md) and the figures the section shows.
 
-    python docs/scaling_results.py OUT "the command that made OUT"
+    python docs/scaling_results.py OUT "how OUT was made (the command, its time)"
 
 OUT is the folder of ``sensorimotor reproduce --experiment scaling --out OUT``.
 """
@@ -21,7 +21,7 @@ from sensorimotor.report.scaling import section
 DEST = Path(__file__).parent / "results" / "scaling"
 
 
-def main(out: Path, command: str) -> None:
+def main(out: Path, note: str) -> None:
     found = json.loads((out / "scaling" / "scaling.json").read_text())
     DEST.mkdir(parents=True, exist_ok=True)
     shutil.copy(out / "scaling" / "scaling.json", DEST / "scaling.json")
@@ -34,16 +34,7 @@ def main(out: Path, command: str) -> None:
         (DEST / rel).parent.mkdir(parents=True, exist_ok=True)
         shutil.copy(out / "scaling" / rel, DEST / rel)
     blocks = section(SimpleNamespace(out=DEST.parent), found)
-    timings = json.loads((out / "timings.json").read_text())
-    took = timings.get("scaling", {}).get("seconds")
-    blocks.insert(
-        1,
-        p(
-            f"Made by `{command}`"
-            + (f"; the scaling stage took {took / 60:.0f} min" if took else "")
-            + " (a loaded 2-core machine, one worker)."
-        ),
-    )
+    blocks.insert(1, p(note))
     write_text_atomic(DEST / "scaling.md", to_markdown(blocks, DEST))
 
 

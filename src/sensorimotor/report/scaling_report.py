@@ -202,7 +202,13 @@ def section(rep, found: dict) -> list[Block]:
     thresholds = "; ".join(
         f"**{v['finding']}**: {v['threshold']}" for v in next(iter(conds.values()))["verdicts"]
     )
-    blocks.append(p(f"Each finding holds when its threshold is met: {thresholds}."))
+    blocks.append(
+        p(
+            f"Each finding holds when its threshold is met: {thresholds}. The thresholds are "
+            "`analysis.claims`' for Square; they compare means over seeds (and test databases), "
+            "with no test of significance: the ± columns give the spread over seeds."
+        )
+    )
     blocks.append(table(["Finding", *conds], rows))
     failed = [
         f"{v['finding']} in {name}"
