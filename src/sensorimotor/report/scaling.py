@@ -1,0 +1,500 @@
+"""Does it scale? ``reproduce --experiment scaling``: the paper's four models on more rays, on
+noisy readings and on generated floor plans never seen in training.
+
+Conditions (``conditions``), each trained with S, SM, Rec-S and Rec-SM, the reproduction's
+seeds, steps, epoch caps and patience (``Size.of``):
+
+    rays5, rays16, rays64  Rooms2 with 5, 16 and 64 rays over the paper's field of view (1.2 rad)
+                           and range (10): Rooms2 is the built-in world with the most walls, wall
+                           ends and corners, so the most for more rays to see
+    noise                  Rooms2, the paper's 5 rays, Gaussian reading noise and dropouts
+    plans                  10 generated floor plans (``sim.floorplan``) for training, 10 others
+                           for testing, every one 50 x 50 with 6 rooms
+
+Stages, each cached under ``OUT/scaling/`` by a hash of its inputs (a rerun does only what is
+missing or changed): ``data/`` (a database per condition, and per plan), ``runs/`` (every
+model's seeds of one condition in one ``train.train_runs`` call), ``eval/`` (``evaluate_run``
+on the condition's test databases), ``analysis/`` (``analyze_files`` of each run and of the
+raw readings on each test database: the corner cluster and the memory numbers of
+``analysis.claims``). The 10 training plans make one database (``merge_plans``): the train
+parts of the 10 plan databases one after the other, then their validation parts, then their
+test parts, so that its splits are exactly the union of the plans' splits; its world is
+unknown (rows of 10 worlds; training reads readings and commands alone).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import shutil
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from sensorimotor.errors import InputError
+from sensorimotor.files import file_hash, write_json_atomic
+from sensorimotor.learn.evaluate import mean_sd
+from sensorimotor.learn.models import MODEL_KINDS
+from sensorimotor.learn.runs import run_name
+from sensorimotor.report.scaling_report import KINDS, finite, plot_errors, section, verdicts
+from sensorimotor.report.workers import Job, report
+from sensorimotor.version import __version__
+
+WORLD = "rooms2"  # the built-in world of the ray and noise conditions (module docstring)
+FOV, RANGE = 1.2, 10.0  # the paper's layout: 5 rays from -0.6 to 0.6 rad, range 10
+PLANS = 10  # generated floor plans to train on, and as many others to test on
+PLAN = {"rooms": 6, "size": 50.0, "door": 5.0, "min_side": 10.0}
+"""The generated plans: as large as the paper's worlds, doorways as wide as Rooms2's openings
+are at their narrowest (5 units: the behaviour turns at 1 unit from a wall)."""
+TEST_PLAN_SEED = 1000  # test plans are seeds 1000..1009, training plans 0..9
+NOISE_SD, DROPOUT = 0.3, 0.01  # units of reading noise (3 % of the range); rays dropped
+
+
+@dataclass(frozen=True)
+class Condition:
+    """One condition: the database(s) its models train on and are tested on."""
+
+    name: str
+    label: str
+    rays: int = 5
+    noise: float = 0.0
+    dropout: float = 0.0
+    plans: int = 0  # 0: the built-in WORLD; else train on this many plans, test on as many others
+
+    def layout(self) -> dict:
+        return {"rays": self.rays, "fov": FOV, "range": RANGE}
+
+
+@dataclass(frozen=True)
+class Size:
+    """How big the experiment is: the reproduction's scale, or a test's."""
+
+    steps: int  # rows of a condition's database (of the 10 training plans' together)
+    seeds: int
+    max_epochs: dict = field(default_factory=dict)
+    patience: int = 10
+
+    @staticmethod
+    def of(rep) -> Size:
+        sc = rep.scale
+        return Size(sc.steps, rep.seeds, dict(sc.max_epochs), sc.patience)
+
+    @property
+    def plan_steps(self) -> int:
+        """Rows of one plan's database: a tenth, a multiple of 10 so that splits line up."""
+        return max(10, self.steps // PLANS // 10 * 10)
+
+
+def conditions() -> list[Condition]:
+    """The experiment's conditions, in the report's order."""
+    return [
+        Condition("rays5", "5 rays (the paper's layout), Rooms2", 5),
+        Condition("rays16", "16 rays, Rooms2", 16),
+        Condition("rays64", "64 rays, Rooms2", 64),
+        Condition(
+            "noise",
+            f"5 rays, noise SD {NOISE_SD:g} units and {DROPOUT:.0%} dropouts, Rooms2",
+            noise=NOISE_SD,
+            dropout=DROPOUT,
+        ),
+        Condition("plans", f"{PLANS} generated plans, tested on {PLANS} unseen", plans=PLANS),
+    ]
+
+
+def key_of(obj) -> str:
+    """A short stable hash of a JSON-able description of a stage's inputs."""
+    return hashlib.sha256(json.dumps(obj, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def _read_key(path: Path) -> str | None:
+    try:
+        return json.loads(path.read_text())["key"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+# --- jobs (module-level: they run in worker processes) ---------------------------------------
+
+
+def plan_world(seed: int, name: str):
+    """Generated plan ``seed`` (``PLAN``'s rooms and sizes), named ``name``."""
+    from sensorimotor.sim.floorplan import random_plan
+
+    size = PLAN["size"]
+    return random_plan(PLAN["rooms"], seed, PLAN["door"], (size, size), PLAN["min_side"], name=name)
+
+
+def _data_job(spec: dict, path: str, key: str) -> str:
+    """One database: ``spec`` names the world (built-in, or a plan's seed) and the layout."""
+    from sensorimotor.sim.core import spread_layout
+    from sensorimotor.sim.database import generate, save_database
+    from sensorimotor.sim.world import load_world
+
+    world = spec["world"]
+    world = load_world(world) if isinstance(world, str) else plan_world(**world)
+    layout = spread_layout(spec["rays"], spec["fov"], spec["range"])
+    db = generate(
+        world, spec["steps"], spec["seed"], layout, spec["noise"], dropout=spec["dropout"]
+    )
+    save_database(db, path)
+    write_json_atomic(Path(path).with_suffix(".json"), {"key": key})
+    return path
+
+
+def merge_plans(parts: Sequence[str], path: str, name: str) -> Path:
+    """One database of the plan databases ``parts`` (equal lengths, one layout): their train
+    parts, then their validation parts, then their test parts, so that each split is the
+    union of theirs. Its ``meta.world`` names it alone (rows of several worlds have no one
+    world's walls) and ``meta.source`` lists the plans."""
+    from sensorimotor.sim.database import Database, load_database, save_database
+
+    dbs = [load_database(p) for p in parts]
+    if len({len(db) for db in dbs}) != 1 or len({db.layout for db in dbs}) != 1:
+        raise InputError(f"{parts[0]}: plan databases merged must have one length and layout")
+    arrays = [
+        np.concatenate(
+            [getattr(db.take(split), a) for split in ("train", "val", "test") for db in dbs]
+        )
+        for a in ("sensors", "motors", "poses")
+    ]
+    first = dbs[0].meta
+    meta = {
+        "format": first["format"],
+        "world": {"name": name},
+        "source": "the train, validation and test parts of "
+        + ", ".join(db.meta["world"]["name"] for db in dbs)
+        + " (each split the union of theirs)",
+        "seed": [db.meta["seed"] for db in dbs],
+        "steps": sum(len(db) for db in dbs),
+        "sensor_layout": first["sensor_layout"],
+        "noise_std": first["noise_std"],
+        "behaviour": first["behaviour"],
+        "version": __version__,
+    }
+    return save_database(Database(*arrays, meta=meta), path)
+
+
+def _merge_job(parts: list[str], path: str, name: str, key: str) -> str:
+    merge_plans(parts, path, name)
+    write_json_atomic(Path(path).with_suffix(".json"), {"key": key})
+    return path
+
+
+def _train_job(data: str, runs: list[tuple[int, str]], config: dict, key: str) -> dict:
+    """Every seed of one model on one database, in one ``train_runs`` call (stacked where it
+    can); a run folder made from other inputs is cleared first, one of these inputs resumed."""
+    from sensorimotor.learn.runs import TrainConfig
+    from sensorimotor.learn.train import train_runs
+
+    for _, run_dir in runs:
+        run = Path(run_dir)
+        run.parent.mkdir(parents=True, exist_ok=True)
+        if run.exists() and _read_key(_mark(run)) != key:
+            shutil.rmtree(run)
+    names = [Path(r).name for _, r in runs]
+
+    def on_epoch(i, r, stopper) -> None:
+        report(names[i], f"epoch {r.epoch:3d} val {r.val_error:.5f} (best {stopper.lowest:.5f})")
+
+    write_marks = [_mark(r) for _, r in runs]
+    for mark in write_marks:  # the inputs the folder is from, before it is written
+        write_json_atomic(mark, {"key": key, "done": False})
+    results = train_runs(data, runs, TrainConfig(**config, seed=0), resume=True, on_epoch=on_epoch)
+    for mark in write_marks:
+        write_json_atomic(mark, {"key": key, "done": True})
+    return {n: r.best_val_error for n, r in zip(names, results, strict=True)}
+
+
+def _eval_job(run_dir: str, data: list[str], out: str, key: str) -> dict:
+    from sensorimotor.learn.evaluate import evaluate_run
+
+    result = evaluate_run(run_dir, data)
+    write_json_atomic(Path(out), {"key": key, "result": result})
+    return result
+
+
+def _analysis_job(run: str, data: str, out: str, key: str) -> dict:
+    from sensorimotor.analysis import analyze_files
+
+    metrics = analyze_files(run, data, out).metrics
+    write_json_atomic(Path(out) / "stage.json", {"key": key})
+    return metrics
+
+
+# --- the stages --------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Plan:
+    """Where one condition's files are, once its data stage has been planned."""
+
+    cond: Condition
+    train_data: Path
+    test_data: list[Path]
+    seen_data: list[Path] = field(default_factory=list)  # plans: the training plans' own
+
+
+def _spec(cond: Condition, steps: int, world, seed: int) -> dict:
+    return {
+        "world": world,
+        "steps": steps,
+        "seed": seed,
+        **cond.layout(),
+        "noise": cond.noise,
+        "dropout": cond.dropout,
+        "version": __version__,
+    }
+
+
+def _data_stage(ctx, size: Size, conds: Sequence[Condition]) -> tuple[list[Plan], list, list]:
+    """Each condition's databases: (plans, jobs that make the missing ones, merge jobs)."""
+    root = ctx.dir / "data"
+    plans, jobs, merges = [], [], []
+
+    def need(path: Path, spec: dict) -> None:
+        key = key_of(spec)
+        if not (path.exists() and _read_key(path.with_suffix(".json")) == key):
+            jobs.append(Job(f"data {path.stem}", _data_job, (spec, str(path), key)))
+
+    for cond in conds:
+        if not cond.plans:
+            path = root / f"{cond.name}.npz"
+            need(path, _spec(cond, size.steps, WORLD, 0))
+            plans.append(Plan(cond, path, [path]))
+            continue
+        parts = {"train": [], "test": []}
+        for side, first in (("train", 0), ("test", TEST_PLAN_SEED)):
+            for k in range(cond.plans):
+                name = f"{cond.name}-{side}{k}"
+                path = root / cond.name / f"{name}.npz"
+                world = {"seed": first + k, "name": name}
+                need(path, _spec(cond, size.plan_steps, world, k))
+                parts[side].append(path)
+        merged = root / f"{cond.name}.npz"
+        spec = [_spec(cond, size.plan_steps, p.name, 0) for p in parts["train"]]  # not where
+        key = key_of({"merge": spec, "version": __version__})
+        if not (merged.exists() and _read_key(merged.with_suffix(".json")) == key) or any(
+            job.name.startswith(f"data {cond.name}-") for job in jobs
+        ):
+            args = ([str(p) for p in parts["train"]], str(merged), f"{cond.name}-train", key)
+            merges.append(Job(f"data {cond.name}", _merge_job, args))
+        plans.append(Plan(cond, merged, parts["test"], parts["train"]))
+    root.mkdir(parents=True, exist_ok=True)
+    for plan in plans:
+        plan.train_data.parent.mkdir(parents=True, exist_ok=True)
+        for p in plan.test_data:
+            p.parent.mkdir(parents=True, exist_ok=True)
+    return plans, jobs, merges
+
+
+def _mark(run_dir: str | Path) -> Path:
+    """The file beside a run folder that says which inputs it is from and whether it is done."""
+    return Path(run_dir).with_name(Path(run_dir).name + ".key.json")
+
+
+def _trained(run_dir: str, key: str) -> bool:
+    try:
+        mark = json.loads(_mark(run_dir).read_text())
+    except (OSError, ValueError):
+        return False
+    return mark == {"key": key, "done": True} and (Path(run_dir) / "result.json").exists()
+
+
+def _train_config(size: Size, model: str, device: str) -> dict:
+    return {
+        "model": model,
+        "device": device,
+        "max_epochs": size.max_epochs.get(model),
+        "patience": size.patience,
+    }
+
+
+def _run_dirs(ctx, cond: Condition, model: str, size: Size) -> list[tuple[int, str]]:
+    return [(s, str(ctx.dir / "runs" / run_name(cond.name, model, s))) for s in range(size.seeds)]
+
+
+def _train_jobs(ctx, size: Size, plans: list[Plan], device: str, hashes: dict) -> list[Job]:
+    from sensorimotor.learn.models import ModelConfig
+
+    jobs = []
+    for plan in plans:
+        for model in MODEL_KINDS:
+            config = _train_config(size, model, device)
+            key = key_of(
+                {
+                    "data": hashes[plan.train_data],
+                    "train": config,
+                    "model": ModelConfig(kind=model).to_dict(),
+                }
+            )
+            runs = _run_dirs(ctx, plan.cond, model, size)
+            done = all(_trained(r, key) for _, r in runs)
+            if not done:
+                name = f"{plan.cond.name}__{model}"
+                jobs.append(Job(name, _train_job, (str(plan.train_data), runs, config, key)))
+    return jobs
+
+
+def _eval_targets(ctx, plan: Plan, size: Size) -> list[tuple[str, list[Path], Path]]:
+    """(run folder, databases it is tested on, result file) for each run of a condition."""
+    data = [*plan.test_data, *plan.seen_data]
+    return [
+        (run, data, ctx.dir / "eval" / f"{Path(run).name}.json")
+        for model in MODEL_KINDS
+        for _, run in _run_dirs(ctx, plan.cond, model, size)
+    ]
+
+
+def _analysis_targets(ctx, plan: Plan, size: Size) -> list[tuple[str, str, str, Path]]:
+    """(kind, run folder or "raw", test database, output folder): every run and the raw
+    readings on each test database."""
+    out = []
+    for db in plan.test_data:
+        where = ctx.dir / "analysis"
+        out.append(("raw", "raw", str(db), where / f"raw__{plan.cond.name}__on__{db.stem}"))
+        for model in MODEL_KINDS:
+            for _, run in _run_dirs(ctx, plan.cond, model, size):
+                out.append((model, run, str(db), where / f"{Path(run).name}__on__{db.stem}"))
+    return out
+
+
+def _run_stage(ctx, jobs: list[Job]) -> dict:
+    results, failures = ctx.run_jobs(jobs, ctx.workers, ctx.progress)
+    if failures:
+        first = failures[0]
+        if isinstance(first.error, InputError):
+            raise InputError(f"scaling: {first.name}: {first.error}")
+        raise RuntimeError(f"scaling: {first.name} failed") from first.error
+    return results
+
+
+def run_conditions(ctx, size: Size, conds: Sequence[Condition], device: str = "cpu") -> dict:
+    """Every stage of ``conds`` (cached); their numbers by condition name, and ``jobs``: how
+    many jobs each stage ran (0 when everything was kept)."""
+    from sensorimotor.analysis import METRICS_VERSION
+    from sensorimotor.analysis.claims import claim_numbers
+    from sensorimotor.learn.evaluate import baselines
+    from sensorimotor.sim.database import load_database
+
+    ran = {}
+    plans, jobs, merges = _data_stage(ctx, size, conds)
+    _run_stage(ctx, jobs)
+    _run_stage(ctx, merges)
+    ran["data"] = len(jobs) + len(merges)
+    paths = {p for plan in plans for p in (plan.train_data, *plan.test_data, *plan.seen_data)}
+    hashes = {p: file_hash(p) for p in paths}
+
+    jobs = _train_jobs(ctx, size, plans, device, hashes)
+    _run_stage(ctx, jobs)
+    ran["train"] = len(jobs)
+
+    jobs = []
+    for plan in plans:
+        for run, data, out in _eval_targets(ctx, plan, size):
+            key = key_of(
+                {"model": file_hash(Path(run) / "model.pt"), "data": [hashes[d] for d in data]}
+            )
+            if _read_key(out) != key:
+                out.parent.mkdir(parents=True, exist_ok=True)
+                jobs.append(
+                    Job(Path(run).name, _eval_job, (run, [str(d) for d in data], str(out), key))
+                )
+    _run_stage(ctx, jobs)
+    ran["evaluate"] = len(jobs)
+
+    jobs = []
+    for plan in plans:
+        for _, run, data, out in _analysis_targets(ctx, plan, size):
+            model = "raw" if run == "raw" else file_hash(Path(run) / "model.pt")
+            key = key_of(
+                {
+                    "model": model,
+                    "data": hashes[Path(data)],
+                    "version": __version__,
+                    "metrics": METRICS_VERSION,
+                }
+            )
+            if not ((out / "metrics.json").exists() and _read_key(out / "stage.json") == key):
+                jobs.append(Job(out.name, _analysis_job, (run, data, str(out), key)))
+    _run_stage(ctx, jobs)
+    ran["analyze"] = len(jobs)
+
+    found = {}
+    for plan in plans:
+        evals = [
+            json.loads(out.read_text())["result"] for _, _, out in _eval_targets(ctx, plan, size)
+        ]
+        test_names = [load_database(p).meta["world"]["name"] for p in plan.test_data]
+        seen_names = [load_database(p).meta["world"]["name"] for p in plan.seen_data]
+        base = [baselines(load_database(p)) for p in plan.test_data]
+        numbers: dict[str, dict[str, list]] = {k: {} for k in KINDS}
+        targets = _analysis_targets(ctx, plan, size)
+        for db in plan.test_data:  # claims.claim_numbers of each test database's analyses
+            mine = [(kind, run, out) for kind, run, data, out in targets if data == str(db)]
+            analyses, runs = {}, []
+            for kind, run, out in mine:
+                seed = int(Path(run).name.rsplit("__s", 1)[1]) if kind != "raw" else 0
+                analyses["raw__w" if kind == "raw" else run_name("w", kind, seed)] = json.loads(
+                    (out / "metrics.json").read_text()
+                )
+                if kind != "raw":
+                    runs.append(("w", kind, seed))
+            for kind, values in claim_numbers(analyses, runs, ["w"])["w"].items():
+                for name, vals in values.items():
+                    numbers[kind].setdefault(name, []).extend(vals)
+        found[plan.cond.name] = condition_numbers(
+            plan.cond, evals, test_names, seen_names, base, numbers
+        )
+    return {"conditions": found, "jobs": ran}
+
+
+def _mean(values: list) -> float | None:
+    values = [v for v in values if finite(v) is not None]
+    return mean_sd(values)[0] if values else None
+
+
+def condition_numbers(cond, evals, test_names, seen_names, base, numbers) -> dict:
+    """One condition's numbers (strict JSON): each model's test error (mean and sd over seeds
+    of its mean over the test databases), on the training plans too for ``plans``, the
+    baselines, the claim numbers (means over seeds and test databases) and the verdicts."""
+    errors, seen = {}, {}
+    for kind in MODEL_KINDS:
+        mine = [e for e in evals if e["model"] == kind]
+        values = [float(np.mean([e["errors"][w] for w in test_names])) for e in mine]
+        mean, sd = mean_sd(values)
+        errors[kind] = {"mean": mean, "sd": sd, "n": len(values), "values": values}
+        if seen_names:
+            seen[kind] = float(np.mean([e["errors"][w] for e in mine for w in seen_names]))
+    claims = {
+        kind: {
+            name: _mean(numbers[kind].get(name, []))
+            for name in ("corner_f1", "nothing_clusters", "behind_r2")
+        }
+        for kind in KINDS
+    }
+    return {
+        "label": cond.label,
+        "condition": asdict(cond),
+        "test_worlds": test_names,
+        "seen_worlds": seen_names,
+        "errors": errors,
+        "errors_on_training_plans": seen or None,
+        "copy_last": float(np.mean([b["copy_last"] for b in base])),
+        "mean_baseline": float(np.mean([b["mean"] for b in base])),
+        "claims": claims,
+        "verdicts": verdicts({k: v["mean"] for k, v in errors.items()}, claims),
+    }
+
+
+def run(ctx) -> dict:
+    """The experiment at the reproduction's scale (``reproduce``'s hook)."""
+    size = Size.of(ctx.rep)
+    found = run_conditions(ctx, size, conditions(), getattr(ctx.rep, "device", "cpu"))
+    plot_errors(found["conditions"], ctx.dir / "errors.png")
+    ctx.log(f"  scaling: {found['jobs']}")
+    return {"size": asdict(size), "plan": PLAN, **found}
+
+
+__all__ = ["run", "section", "verdicts"]
