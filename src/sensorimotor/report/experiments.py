@@ -24,7 +24,9 @@ from types import ModuleType
 from sensorimotor.errors import InputError
 from sensorimotor.files import write_json_atomic
 
-EXPERIMENTS: dict[str, str] = {}
+EXPERIMENTS: dict[str, str] = {
+    "map": "sensorimotor.report.map_stage",  # from cells to a map (issue 22)
+}
 """name -> the module that runs it."""
 DEFAULT: tuple[str, ...] = ()
 """The experiments ``reproduce`` runs unless told otherwise (cheap enough for every run)."""
