@@ -463,7 +463,10 @@ def map_files(
     the_map, the_cells = map_graphs(model, graph, state_mean, occupancy, comm, world)
     best = test.cells * clones + filtered(model, test.cells, test.actions).argmax(axis=1)
     seen = np.bincount(best, minlength=model.n_states).astype(np.float64)  # test occupancy
-    place = plot_place_fields(world, test.poses, best, seen, f"{metrics['model']} on {world.name}")
+    box = not db.has_walls  # the frame is the path's bounding box, not walls
+    place = plot_place_fields(
+        world, test.poses, best, seen, f"{metrics['model']} on {world.name}", bounding_box=box
+    )
     drawn = plot_map_graph(
         world,
         state_mean,
@@ -472,6 +475,7 @@ def map_files(
         comm,
         occupancy,
         f"{metrics['model']} on {world.name}: {int(model.active.sum())} states",
+        bounding_box=box,
     )
     figures = {"place_fields.png": place, "map_graph.png": drawn.figure}
     if traces:
