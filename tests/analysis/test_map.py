@@ -311,6 +311,8 @@ def test_a_world_of_unknown_walls_is_drawn_and_labelled_as_a_bounding_box():
             if patch.get_linestyle() == "--" and (patch.get_width(), patch.get_height()) == (10, 8)
         ]
         assert len(dashed) == (2 if bounding_box else 0)  # one per drawn field
+        walls = [line for ax in fig.axes for line in ax.lines if line.get_gid() == "wall"]
+        assert (len(walls) == 0) == bounding_box  # the box is not drawn as walls
         assert ("bounding box" in fig._suptitle.get_text()) == bounding_box
         ax = plot_map_graph(
             box,

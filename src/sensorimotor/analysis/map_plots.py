@@ -16,7 +16,10 @@ BOX_NOTE = "walls unknown: dashed = the bounding box of the robot's path"
 
 
 def _box(world: World, ax: Axes) -> None:
-    """The dashed frame of a world of unknown walls: the bounding box of the path, not a wall."""
+    """The dashed frame of a world of unknown walls: the bounding box of the path, not a wall
+    (``plot_world``'s outer walls of it are taken away)."""
+    for line in [line for line in ax.lines if line.get_gid() == "wall"]:
+        line.remove()
     frame = mpl.patches.Rectangle(
         (0, 0), world.width, world.height, fill=False, ls="--", lw=0.8, ec="0.4", zorder=0
     )
