@@ -32,6 +32,12 @@ def test_the_verdict_needs_the_margin_and_two_standard_errors():
     assert steady["holds"] is True
     assert steady["sd"] == pytest.approx(0.01, abs=1e-9)  # differences 0.1, 0.11, 0.09
     assert map_stage.verdict([0.5, None], [0.4, 0.4], 0.05)["holds"] is None
+    # success rates of 100 pairs: one seed is judged on its binomial error (about 0.067 here)
+    rates = map_stage.verdict([0.45], [0.33], 0.05, trials=[100])
+    assert rates["se"] == pytest.approx((0.45 * 0.55 / 100 + 0.33 * 0.67 / 100) ** 0.5)
+    assert rates["holds"] is False
+    assert map_stage.verdict([0.6], [0.33], 0.05, trials=[100])["holds"] is True
+    assert map_stage.verdict([0.45] * 25, [0.33] * 25, 0.05, trials=[100] * 25)["holds"] is True
 
 
 def test_aggregate_pairs_seeds_and_orders_representations():

@@ -8,7 +8,8 @@
 SHA-256). The runs are ``docs/results/runs/{world}__{model}__s{seed}``. Each pass of
 ``--seeds`` (1, then 3, then 5 seeds) fits only the maps not fitted yet (the stage's cache)
 and writes ``OUT/map/map.json`` and ``OUT/map/map.md``; one worker, in this process.
-``--zcache DIR``: z_s of each run on its own world's splits, read from
+``--raw-seeds N``: raw mapped with seeds 0..N-1 only (default: as many as the runs), so that
+the CPU goes to the trained runs' seeds first. ``--zcache DIR``: z_s of each run on its own world's splits, read from
 ``DIR/{run}__{split}.npy`` where present (they are computed the same way otherwise).
 """
 
@@ -25,6 +26,7 @@ import numpy as np
 from sensorimotor.analysis import mapping
 from sensorimotor.files import file_hash, write_text_atomic
 from sensorimotor.report import experiments as ex
+from sensorimotor.report import map_stage
 from sensorimotor.report.document import to_markdown
 from sensorimotor.report.workers import run_jobs
 
@@ -38,6 +40,7 @@ def main(argv: list[str]) -> None:
     ap.add_argument("--models", default="raw,rec-sm")
     ap.add_argument("--worlds", default="rooms1,rooms2")
     ap.add_argument("--seeds", default="1,3,5")
+    ap.add_argument("--raw-seeds", type=int, default=None)
     ap.add_argument("--zcache", type=Path, default=None)
     a = ap.parse_args(argv)
     worlds = tuple(a.worlds.split(","))
@@ -58,6 +61,11 @@ def main(argv: list[str]) -> None:
             return plain(run, db, split)
 
         mapping.representation_of = cached
+    if a.raw_seeds is not None:
+        every = map_stage.targets
+        map_stage.targets = lambda rep: [
+            t for t in every(rep) if t[1] != "raw" or t[4] < a.raw_seeds
+        ]
     for n in map(int, a.seeds.split(",")):
         rep = SimpleNamespace(
             out=a.out,

@@ -18,8 +18,9 @@ seed, the same test split), each with a minimum effect ``MARGINS``:
 - *the planner beats the random behaviour*: planning success map - random.
 
 A claim **holds** when the mean difference exceeds its margin and, with two seeds or more,
-2 standard errors over seeds (sd / sqrt(n)); it is **n/a** where the number is (a world
-without named rooms, no planning pairs).
+2 standard errors over seeds (sd / sqrt(n)); for planning, whose rates come from a finite
+number of start/goal pairs, 2 standard errors that are at least the binomial one, also with one
+seed. It is **n/a** where the number is (a world without named rooms, no planning pairs).
 """
 
 from __future__ import annotations
@@ -162,15 +163,23 @@ def _stats(values: list) -> dict:
     return {"mean": float(x.mean()), "sd": sd, "n": len(x), "values": [float(v) for v in x]}
 
 
-def verdict(better: list, worse: list, margin: float) -> dict:
+def verdict(better: list, worse: list, margin: float, trials: list | None = None) -> dict:
     """The paired per-seed difference ``better - worse``: its mean, sd, standard error and
-    whether the claim holds (module docstring); ``holds`` None where a number is missing."""
+    whether the claim holds (module docstring); ``holds`` None where a number is missing.
+    ``trials``: each seed's number of trials when ``better`` and ``worse`` are success rates;
+    the standard error is then at least the binomial one of the mean difference (so that one
+    seed of 100 planning pairs is judged on its sampling error, about 0.07, too)."""
     if not better or any(v is None for v in [*better, *worse]):
         return {"mean": None, "sd": None, "se": None, "n": len(better), "holds": None}
-    d = np.asarray(better, dtype=np.float64) - np.asarray(worse, dtype=np.float64)
+    b, w = np.asarray(better, dtype=np.float64), np.asarray(worse, dtype=np.float64)
+    d = b - w
     n = len(d)
     sd = float(d.std(ddof=1)) if n > 1 else None
     se = None if sd is None else sd / math.sqrt(n)
+    if trials is not None and all(t for t in trials):
+        var = (b * (1 - b) + w * (1 - w)) / np.asarray(trials, dtype=np.float64)
+        binomial = float(math.sqrt(var.sum()) / n)
+        se = binomial if se is None else max(se, binomial)
     holds = bool(d.mean() > margin and (se is None or d.mean() > 2 * se))
     return {"mean": float(d.mean()), "sd": sd, "se": se, "n": n, "holds": holds}
 
@@ -187,11 +196,17 @@ def aggregate(per_map: list[tuple[str, str, int, dict]]) -> dict:
         for model in [m for m in MODELS if m in models] + [m for m in models if m not in MODELS]:
             maps = sorted(models[model], key=lambda sm: sm[0])
             values = {key: [_get(m, path) for _, m in maps] for key, path, _, _ in METRICS}
+            pairs = [_get(m, "planning.pairs") for _, m in maps]
             out[world][model] = {
                 "seeds": [s for s, _ in maps],
                 "metrics": {key: _stats(v) for key, v in values.items()},
                 "claims": {
-                    c: {**verdict(values[b], values[w], MARGINS[c]), "margin": MARGINS[c]}
+                    c: {
+                        **verdict(
+                            values[b], values[w], MARGINS[c], pairs if c == "plans" else None
+                        ),
+                        "margin": MARGINS[c],
+                    }
                     for c, (_, b, w) in CLAIMS.items()
                 },
             }
@@ -254,7 +269,9 @@ def section(rep, found: dict) -> list:
             f"Planning: {s['pairs']} start/goal pairs, {s['budget']} steps each. A claim holds when the "
             "mean paired per-seed difference exceeds its margin "
             f"(bits/step {m['predicts']}, balanced room accuracy {m['localises']}, planning "
-            f"success {m['plans']}) and, with two seeds or more, 2 standard errors over seeds. "
+            f"success {m['plans']}) and, with two seeds or more, 2 standard errors over seeds "
+            "(planning: 2 standard errors at least the binomial one of its pairs, also with one "
+            "seed). "
             f"{found['jobs']['fitted']} map(s) fitted this run, {found['jobs']['cached']} cached."
         )
     )
