@@ -8,6 +8,7 @@
 SHA-256). The runs are ``docs/results/runs/{world}__{model}__s{seed}``. Each pass of
 ``--seeds`` (1, then 3, then 5 seeds) fits only the maps not fitted yet (the stage's cache)
 and writes ``OUT/map/map.json`` and ``OUT/map/map.md``; one worker, in this process.
+``--extra-models s,sm,rec-s --extra-seeds M``: those models too, seeds 0..M-1 only.
 ``--raw-seeds N``: raw mapped with seeds 0..N-1 only (default: as many as the runs), so that
 the CPU goes to the trained runs' seeds first. ``--zcache DIR``: z_s of each run on its own world's splits, read from
 ``DIR/{run}__{split}.npy`` where present (they are computed the same way otherwise).
@@ -41,10 +42,13 @@ def main(argv: list[str]) -> None:
     ap.add_argument("--worlds", default="rooms1,rooms2")
     ap.add_argument("--seeds", default="1,3,5")
     ap.add_argument("--raw-seeds", type=int, default=None)
+    ap.add_argument("--extra-models", default="")
+    ap.add_argument("--extra-seeds", type=int, default=1)
     ap.add_argument("--zcache", type=Path, default=None)
     a = ap.parse_args(argv)
     worlds = tuple(a.worlds.split(","))
     models = [m for m in a.models.split(",") if m != "raw"]
+    extra = [m for m in a.extra_models.split(",") if m]
     data = {w: a.data / f"{w}.npz" for w in worlds}
     for w in worlds:  # the databases the runs were trained on
         want = json.loads((RUNS / f"{w}__rec-sm__s0" / "config.json").read_text())["data"]
@@ -73,7 +77,8 @@ def main(argv: list[str]) -> None:
             seeds=n,
             worlds=worlds,
             data=data,
-            runs=[(w, m, s) for w in worlds for m in models for s in range(n)],
+            runs=[(w, m, s) for w in worlds for m in models for s in range(n)]
+            + [(w, m, s) for w in worlds for m in extra for s in range(min(n, a.extra_seeds))],
             run_dir=lambda w, m, s: RUNS / f"{w}__{m}__s{s}",
         )
         ctx = ex.Context(rep, "map", run_jobs, 1, lambda j, m: print(j, m, flush=True), print)

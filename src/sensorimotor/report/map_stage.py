@@ -290,7 +290,7 @@ def section(rep, found: dict) -> list:
         ]
         b.append(table(["claim (paired difference)", *header[1:]], rows))
         shown = found["figures"].get(world, {})
-        trained = [n for n in shown if n != "raw"]  # the last of MODELS: Rec-SM if there
+        trained = [n for n in MODELS[1:] if n in shown]  # the last of MODELS: Rec-SM if there
         pick = trained[-1] if trained else next(iter(shown), None)
         if pick is not None:
             for fig, caption in zip(
