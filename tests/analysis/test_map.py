@@ -292,3 +292,36 @@ def test_a_map_of_a_recording_whose_walls_are_unknown_says_n_a_where_walls_are_n
     assert m["planning"]["success"] == {"map": None, "random": None}
     errors = m["localisation"]["position_error"]
     assert 0 < errors["map"] < 60  # within the 50 x 50 region the path covers, shift or not
+
+
+def test_a_world_of_unknown_walls_is_drawn_and_labelled_as_a_bounding_box():
+    """A recording's frame is the box of its path, dashed and said so; a world's is its walls."""
+    from sensorimotor.analysis.map_plots import plot_map_graph, plot_place_fields
+    from sensorimotor.sim.world import World
+
+    box = World("robot", 10.0, 8.0, np.zeros((0, 4)))
+    poses = np.array([[1.0, 1.0, 0.0], [9.0, 7.0, 0.0], [5.0, 4.0, 0.0]])
+    states, occupancy = np.array([0, 0, 1]), np.array([2.0, 1.0])
+    for bounding_box in (True, False):
+        fig = plot_place_fields(box, poses, states, occupancy, "t", bounding_box=bounding_box)
+        dashed = [
+            patch
+            for ax in fig.axes
+            for patch in ax.patches
+            if patch.get_linestyle() == "--" and (patch.get_width(), patch.get_height()) == (10, 8)
+        ]
+        assert len(dashed) == (2 if bounding_box else 0)  # one per drawn field
+        walls = [line for ax in fig.axes for line in ax.lines if line.get_gid() == "wall"]
+        assert (len(walls) == 0) == bounding_box  # the box is not drawn as walls
+        assert ("bounding box" in fig._suptitle.get_text()) == bounding_box
+        ax = plot_map_graph(
+            box,
+            poses[:2, :2],
+            np.ones((2, 2)),
+            np.ones(2, dtype=bool),
+            np.zeros(2, dtype=np.int64),
+            occupancy,
+            "t",
+            bounding_box=bounding_box,
+        )
+        assert ("bounding box" in ax.get_title()) == bounding_box

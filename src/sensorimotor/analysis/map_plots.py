@@ -12,6 +12,18 @@ from sensorimotor.sim.world import World
 
 N_FIELDS = 24  # place fields drawn: the most occupied states
 MAX_DOTS = 4_000  # positions drawn per field (evenly thinned)
+BOX_NOTE = "walls unknown: dashed = the bounding box of the robot's path"
+
+
+def _box(world: World, ax: Axes) -> None:
+    """The dashed frame of a world of unknown walls: the bounding box of the path, not a wall
+    (``plot_world``'s outer walls of it are taken away)."""
+    for line in [line for line in ax.lines if line.get_gid() == "wall"]:
+        line.remove()
+    frame = mpl.patches.Rectangle(
+        (0, 0), world.width, world.height, fill=False, ls="--", lw=0.8, ec="0.4", zorder=0
+    )
+    ax.add_patch(frame)
 
 
 def plot_place_fields(
@@ -21,9 +33,12 @@ def plot_place_fields(
     occupancy: np.ndarray,
     title: str,
     n: int = N_FIELDS,
+    bounding_box: bool = False,
 ) -> Figure:
     """The positions (``poses`` (N, 3)) of the steps whose most probable state (``states``
-    (N,)) is each of the ``n`` states with the largest ``occupancy`` (S,): one panel each."""
+    (N,)) is each of the ``n`` states with the largest ``occupancy`` (S,): one panel each.
+    ``bounding_box``: the walls are unknown (a recording): the frame drawn is the box of the
+    path, dashed, and the title says so."""
     top = [int(s) for s in np.argsort(-occupancy, kind="stable")[:n] if occupancy[s] > 0]
     cols = 6
     rows = max(1, -(-len(top) // cols))
@@ -35,6 +50,8 @@ def plot_place_fields(
         ax.set_axis_off()
     for ax, s in zip(axes.ravel(), top, strict=False):
         plot_world(world, ax)
+        if bounding_box:
+            _box(world, ax)
         ax.set_axis_on()
         ax.set_xticks([])
         ax.set_yticks([])
@@ -43,7 +60,8 @@ def plot_place_fields(
         dot = 1 if len(where) > 1_000 else 4  # sparse fields in bigger dots, to be seen
         ax.scatter(poses[where, 0], poses[where, 1], s=dot, color="tab:red", alpha=0.4, lw=0)
         ax.set_title(f"state {s}: {len(np.flatnonzero(states == s)):,} steps", fontsize="small")
-    fig.suptitle(f"{title}: place fields of the {len(top)} most occupied states (test split)")
+    note = f"\n({BOX_NOTE})" if bounding_box else ""
+    fig.suptitle(f"{title}: place fields of the {len(top)} most occupied states (test split){note}")
     return fig
 
 
@@ -56,13 +74,17 @@ def plot_map_graph(
     occupancy: np.ndarray,
     title: str,
     ax: Axes | None = None,
+    bounding_box: bool = False,
 ) -> Axes:
     """The map's states at their mean positions (S, 2) over the walls, coloured by community,
     sized by occupancy; an edge for each pair of states with transitions (``weights`` (S, S),
-    both directions summed), darker the more often it is taken."""
+    both directions summed), darker the more often it is taken. ``bounding_box``: as for
+    ``plot_place_fields``."""
     if ax is None:
         ax = Figure(figsize=(6.5, 6.5 * world_aspect([world])), layout="constrained").add_subplot()
     plot_world(world, ax)
+    if bounding_box:
+        _box(world, ax)
     w = weights + weights.T
     np.fill_diagonal(w, 0)
     i, j = np.nonzero(np.triu(w))
@@ -79,7 +101,8 @@ def plot_map_graph(
     ax.scatter(
         positions[s, 0], positions[s, 1], s=size, c=colours, edgecolors="k", lw=0.3, zorder=2
     )
-    ax.set_title(f"{title}, {int(community.max()) + 1} communities")
+    note = f"\n({BOX_NOTE})" if bounding_box else ""
+    ax.set_title(f"{title}, {int(community.max()) + 1} communities{note}")
     return ax
 
 

@@ -12,7 +12,9 @@ cloned HMM (``chmm.fit_chmm``). On the test split:
   at step t, each state labelled on the training split by the posterior-weighted frequency of
   each room (or 10 x 10 grid square) and its mean position, gives the most probable room and
   the expected position; against the cell alone (the same labels per cell) and chance (the
-  most frequent room, the mean position). Room numbers need a world whose file names its
+  most frequent room, the mean position). Room accuracy is given plain and balanced (the mean
+  over rooms of each room's recall: chance is 1 / rooms, so a read-out that always names the
+  biggest room scores no better than chance). Room numbers need a world whose file names its
   rooms; otherwise they are null ("n/a");
 - **rooms from the graph**: Louvain communities (networkx) of the map's transition graph
   (Viterbi counts, both directions, all actions) and of the cell graph; adjusted Rand index of
@@ -182,11 +184,16 @@ def _accuracy(model, train: Steps, test: Steps, w_train, w_test, train_labels, t
     by_map = _predict(w_test, test.cells, state_p).argmax(axis=1)[ok]
     by_cell = cell_table.argmax(axis=1)[test.cells][ok]
     chance = int(np.argmax(np.bincount(train_labels[train_labels >= 0], minlength=n)))
-    return {
-        "map": float((by_map == truth).mean()),
-        "cells": float((by_cell == truth).mean()),
-        "chance": float((truth == chance).mean()),
-    }
+    guesses = {"map": by_map, "cells": by_cell, "chance": np.full(len(truth), chance)}
+    plain = {name: float((g == truth).mean()) for name, g in guesses.items()}
+    return plain, {name: balanced_accuracy(truth, g) for name, g in guesses.items()}
+
+
+def balanced_accuracy(truth: np.ndarray, guess: np.ndarray) -> float:
+    """The mean over the labels present in ``truth`` of the fraction of their steps guessed
+    right: a constant guess scores 1 / (labels present), whatever the labels' frequencies."""
+    labels = np.unique(truth)
+    return float(np.mean([(guess[truth == c] == c).mean() for c in labels]))
 
 
 def _mean_positions(weights: np.ndarray, cells: np.ndarray, xy: np.ndarray, S: int) -> tuple:
@@ -214,12 +221,13 @@ def localisation(model: CloneHMM, train: Steps, test: Steps, world: World) -> tu
     if world.rooms:
         rooms_tr = world.room_index(xy_tr[:, 0], xy_tr[:, 1])
         rooms_te = world.room_index(xy_te[:, 0], xy_te[:, 1])
-        out["room_accuracy"] = _accuracy(
+        out["room_accuracy"], out["balanced_room_accuracy"] = _accuracy(
             model, train, test, w_train, w_test, rooms_tr, rooms_te, len(world.rooms)
         )
     else:
         out["room_accuracy"] = {"map": None, "cells": None, "chance": None}
-    out["grid_accuracy"] = _accuracy(
+        out["balanced_room_accuracy"] = dict(out["room_accuracy"])
+    out["grid_accuracy"], _ = _accuracy(
         model,
         train,
         test,
@@ -455,7 +463,10 @@ def map_files(
     the_map, the_cells = map_graphs(model, graph, state_mean, occupancy, comm, world)
     best = test.cells * clones + filtered(model, test.cells, test.actions).argmax(axis=1)
     seen = np.bincount(best, minlength=model.n_states).astype(np.float64)  # test occupancy
-    place = plot_place_fields(world, test.poses, best, seen, f"{metrics['model']} on {world.name}")
+    box = not db.has_walls  # the frame is the path's bounding box, not walls
+    place = plot_place_fields(
+        world, test.poses, best, seen, f"{metrics['model']} on {world.name}", bounding_box=box
+    )
     drawn = plot_map_graph(
         world,
         state_mean,
@@ -464,6 +475,7 @@ def map_files(
         comm,
         occupancy,
         f"{metrics['model']} on {world.name}: {int(model.active.sum())} states",
+        bounding_box=box,
     )
     figures = {"place_fields.png": place, "map_graph.png": drawn.figure}
     if traces:

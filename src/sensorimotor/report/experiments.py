@@ -25,6 +25,7 @@ from sensorimotor.errors import InputError
 from sensorimotor.files import write_json_atomic
 
 EXPERIMENTS: dict[str, str] = {
+    "map": "sensorimotor.report.map_stage",  # a map learned from the cells (issue 22)
     "scaling": "sensorimotor.report.scaling",  # more rays, noise, unseen floor plans (issue 23)
     "rl": "sensorimotor.report.rl_stage",  # PPO on the Rooms1 encoders (issue 25)
 }

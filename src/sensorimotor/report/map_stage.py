@@ -1,0 +1,304 @@
+"""``reproduce --experiment map``: the map of each representation on each trained world.
+
+For every trained world and every representation there, raw (the readings, the baseline) and
+each trained run (model x seed), one job fits the map (``analysis.mapping.map_files``: cells,
+the cell graph, the cloned HMM, its numbers and figures) into ``OUT/map/{name}/``, cached by a
+hash of its inputs (the model's and the database's bytes, the map's settings, the version).
+Raw has no seeds of its own: it is mapped once per seed of the reproduction with that seed
+(k-means, EM and the planner's start/goal pairs), so its spread is the map's own; a trained
+run is mapped with its own seed, so its spread is the representation's and the map's together.
+
+Numbers aggregate over seeds as mean and sample sd (n - 1; none for one seed). Three claims
+are judged per world and representation on the **paired** per-seed difference (the same
+seed, the same test split), each with a minimum effect ``MARGINS``:
+
+- *the map predicts the next cell better than first-order Markov*: bits/step markov - map;
+- *the map localises the room better than its cells*: balanced room accuracy map - cells
+  (balanced: a read-out that always names the biggest room is not credited);
+- *the planner beats the random behaviour*: planning success map - random.
+
+A claim **holds** when the mean difference exceeds its margin and, with two seeds or more,
+2 standard errors over seeds (sd / sqrt(n)); for planning, whose rates come from a finite
+number of start/goal pairs, 2 standard errors that are at least the binomial one, also with one
+seed. It is **n/a** where the number is (a world without named rooms, no planning pairs).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from sensorimotor.errors import InputError
+from sensorimotor.files import file_hash, write_json_atomic
+from sensorimotor.report.document import h, image, p, table
+from sensorimotor.report.workers import Job
+from sensorimotor.version import __version__
+
+MODELS = ("raw", "s", "sm", "rec-s", "rec-sm")
+LABELS = {"raw": "raw", "s": "S", "sm": "SM", "rec-s": "Rec-S", "rec-sm": "Rec-SM"}
+PAIRS = {"smoke": 10}  # planning start/goal pairs by scale; otherwise planning.N_PAIRS
+STAGE_VERSION = 1  # bump when the map's numbers change for the same inputs
+
+# (key in the aggregate, path in map.json, row label in the report, format)
+METRICS = (
+    ("bits.unigram", "bits_per_step.unigram", "bits/step: unigram", ".3f"),
+    ("bits.markov", "bits_per_step.markov", "bits/step: Markov (cell, action)", ".3f"),
+    ("bits.cell_graph", "bits_per_step.cell_graph", "bits/step: cell graph", ".3f"),
+    ("bits.map", "bits_per_step.map", "bits/step: map", ".3f"),
+    ("room.map", "localisation.room_accuracy.map", "room accuracy: map", ".3f"),
+    ("room.cells", "localisation.room_accuracy.cells", "room accuracy: cells", ".3f"),
+    ("room.chance", "localisation.room_accuracy.chance", "room accuracy: chance", ".3f"),
+    ("broom.map", "localisation.balanced_room_accuracy.map", "balanced room acc.: map", ".3f"),
+    ("broom.cells", "localisation.balanced_room_accuracy.cells", "balanced: cells", ".3f"),
+    ("broom.chance", "localisation.balanced_room_accuracy.chance", "balanced: chance", ".3f"),
+    ("pos.map", "localisation.position_error.map", "position error: map", ".2f"),
+    ("pos.cells", "localisation.position_error.cells", "position error: cells", ".2f"),
+    ("pos.chance", "localisation.position_error.chance", "position error: chance", ".2f"),
+    ("ari.map", "rooms.adjusted_rand", "adjusted Rand: map communities", ".3f"),
+    ("ari.cells", "rooms.adjusted_rand_cells", "adjusted Rand: cell communities", ".3f"),
+    ("plan.map", "planning.success.map", "planning success: map", ".2f"),
+    ("plan.random", "planning.success.random", "planning success: random", ".2f"),
+    ("states", "states.active", "active states", ".0f"),
+)
+# claim -> (what, better, worse, minimum effect): holds if mean(better - worse) > margin, and
+# > 2 standard errors over seeds with two seeds or more
+CLAIMS = {
+    "predicts": ("the map predicts the next cell better than Markov", "bits.markov", "bits.map"),
+    "localises": ("the map localises the room better than its cells", "broom.map", "broom.cells"),
+    "plans": ("the planner beats the random behaviour", "plan.map", "plan.random"),
+}
+FIGURES = ("place_fields.png", "map_graph.png")  # shown for each world's first seed
+MARGINS = {"predicts": 0.05, "localises": 0.02, "plans": 0.05}  # bits/step; accuracy; rate
+
+
+def _key(obj) -> str:
+    return hashlib.sha256(json.dumps(obj, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def _read_key(path: Path) -> str | None:
+    try:
+        return json.loads(path.read_text())["key"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def _map_job(run: str, data: str, out: str, seed: int, pairs: int, key: str) -> dict:
+    """One map (a worker's job): ``map_files`` into ``out``, then its cache key."""
+    from sensorimotor.analysis.mapping import map_files
+
+    res = map_files(run, data, out, seed=seed, pairs=pairs)
+    write_json_atomic(Path(out) / "stage.json", {"key": key})
+    return res.metrics
+
+
+def targets(rep) -> list[tuple[str, str, str, str, int]]:
+    """(world, model, name, run: "raw" or a run folder, seed) of every map, in report order."""
+    out = []
+    for world in rep.worlds:
+        for seed in range(rep.seeds):
+            out.append((world, "raw", f"raw__{world}__s{seed}", "raw", seed))
+        for w, model, seed in rep.runs:
+            if w == world:
+                run = rep.run_dir(w, model, seed)
+                out.append((world, model, run.name, str(run), seed))
+    return out
+
+
+def _settings(rep) -> dict:
+    from sensorimotor.analysis.chmm import EM_ITERS
+    from sensorimotor.analysis.clusters import N_CLUSTERS
+    from sensorimotor.analysis.mapping import N_CLONES
+    from sensorimotor.analysis.planning import BUDGET, N_PAIRS
+
+    pairs = PAIRS.get(getattr(rep.scale, "name", ""), N_PAIRS)
+    settings = {"clusters": N_CLUSTERS, "clones": N_CLONES, "em_iters": EM_ITERS}
+    return settings | {"pairs": pairs, "budget": BUDGET}
+
+
+def jobs_of(rep, folder: Path) -> tuple[list[Job], list[tuple]]:
+    """The jobs of the maps not kept under ``folder`` and every map's (world, model, name,
+    seed, folder)."""
+    settings = _settings(rep)
+    data_hash = {w: file_hash(rep.data[w]) for w in rep.worlds}
+    jobs, maps = [], []
+    for world, model, name, run, seed in targets(rep):
+        dest = folder / name
+        model_hash = "raw" if run == "raw" else file_hash(Path(run) / "model.pt")
+        key = _key(
+            {
+                "model": model_hash,
+                "data": data_hash[world],
+                "seed": seed,
+                "settings": settings,
+                "version": __version__,
+                "stage": STAGE_VERSION,
+            }
+        )
+        maps.append((world, model, name, seed, dest))
+        if (dest / "map.json").exists() and _read_key(dest / "stage.json") == key:
+            continue
+        args = (run, str(rep.data[world]), str(dest), seed, settings["pairs"], key)
+        jobs.append(Job(f"map {name}", _map_job, args))
+    return jobs, maps
+
+
+def _get(metrics: dict, path: str):
+    for part in path.split("."):
+        if not isinstance(metrics, dict) or part not in metrics:
+            return None
+        metrics = metrics[part]
+    return metrics
+
+
+def _stats(values: list) -> dict:
+    """mean, sd (n - 1; None for one value), n and the values; mean None if any is None."""
+    if not values or any(v is None for v in values):
+        return {"mean": None, "sd": None, "n": len(values), "values": values}
+    x = np.asarray(values, dtype=np.float64)
+    sd = float(x.std(ddof=1)) if len(x) > 1 else None
+    return {"mean": float(x.mean()), "sd": sd, "n": len(x), "values": [float(v) for v in x]}
+
+
+def verdict(better: list, worse: list, margin: float, trials: list | None = None) -> dict:
+    """The paired per-seed difference ``better - worse``: its mean, sd, standard error and
+    whether the claim holds (module docstring); ``holds`` None where a number is missing.
+    ``trials``: each seed's number of trials when ``better`` and ``worse`` are success rates;
+    the standard error is then at least the binomial one of the mean difference (so that one
+    seed of 100 planning pairs is judged on its sampling error, about 0.07, too)."""
+    if not better or any(v is None for v in [*better, *worse]):
+        return {"mean": None, "sd": None, "se": None, "n": len(better), "holds": None}
+    b, w = np.asarray(better, dtype=np.float64), np.asarray(worse, dtype=np.float64)
+    d = b - w
+    n = len(d)
+    sd = float(d.std(ddof=1)) if n > 1 else None
+    se = None if sd is None else sd / math.sqrt(n)
+    if trials is not None and all(t for t in trials):
+        var = (b * (1 - b) + w * (1 - w)) / np.asarray(trials, dtype=np.float64)
+        binomial = float(math.sqrt(var.sum()) / n)
+        se = binomial if se is None else max(se, binomial)
+    holds = bool(d.mean() > margin and (se is None or d.mean() > 2 * se))
+    return {"mean": float(d.mean()), "sd": sd, "se": se, "n": n, "holds": holds}
+
+
+def aggregate(per_map: list[tuple[str, str, int, dict]]) -> dict:
+    """{world: {model: {"seeds", "metrics": {key: stats}, "claims": {claim: verdict}}}} from
+    (world, model, seed, map.json) of every map."""
+    grouped: dict[str, dict[str, list]] = {}
+    for world, model, seed, metrics in per_map:
+        grouped.setdefault(world, {}).setdefault(model, []).append((seed, metrics))
+    out: dict[str, dict] = {}
+    for world, models in grouped.items():
+        out[world] = {}
+        for model in [m for m in MODELS if m in models] + [m for m in models if m not in MODELS]:
+            maps = sorted(models[model], key=lambda sm: sm[0])
+            values = {key: [_get(m, path) for _, m in maps] for key, path, _, _ in METRICS}
+            pairs = [_get(m, "planning.pairs") for _, m in maps]
+            out[world][model] = {
+                "seeds": [s for s, _ in maps],
+                "metrics": {key: _stats(v) for key, v in values.items()},
+                "claims": {
+                    c: {
+                        **verdict(
+                            values[b], values[w], MARGINS[c], pairs if c == "plans" else None
+                        ),
+                        "margin": MARGINS[c],
+                    }
+                    for c, (_, b, w) in CLAIMS.items()
+                },
+            }
+    return out
+
+
+def run(ctx) -> dict:
+    """Fit every map not kept (``ctx.run_jobs``); the numbers of all, aggregated over seeds."""
+    rep = ctx.rep
+    jobs, maps = jobs_of(rep, ctx.dir)
+    ctx.log(f"  {len(jobs)} map(s) to fit, {len(maps) - len(jobs)} cached")
+    _, failures = ctx.run_jobs(jobs, ctx.workers, ctx.progress)
+    if failures:
+        first = failures[0]
+        if isinstance(first.error, InputError):
+            raise InputError(f"{first.name}: {first.error}")
+        raise RuntimeError(f"{first.name} failed") from first.error
+    per_map = []
+    figures: dict[str, dict] = {}
+    for world, model, _name, seed, dest in maps:
+        per_map.append((world, model, seed, json.loads((dest / "map.json").read_text())))
+        if seed == min(s for w, m, _, s, _ in maps if w == world and m == model):
+            shown = {f: str((dest / f).relative_to(rep.out)) for f in FIGURES}
+            figures.setdefault(world, {})[model] = shown
+    return {
+        "settings": _settings(rep),
+        "margins": MARGINS,
+        "jobs": {"fitted": len(jobs), "cached": len(maps) - len(jobs)},
+        "worlds": aggregate(per_map),
+        "figures": figures,
+    }
+
+
+def _cell(stats: dict, spec: str) -> str:
+    if stats["mean"] is None:
+        return "n/a"
+    text = format(stats["mean"], spec)
+    return text if stats["sd"] is None else f"{text} ± {format(stats['sd'], spec)}"
+
+
+def _claim_text(v: dict) -> str:
+    if v["holds"] is None:
+        return "n/a"
+    spread = "one seed" if v["se"] is None else f"SE {v['se']:.3f}"
+    word = "**holds**" if v["holds"] else "does not hold"
+    return f"{word}: {v['mean']:+.3f} ({spread})"
+
+
+def section(rep, found: dict) -> list:
+    """The map's report section: per world, the numbers side by side, the verdicts, figures."""
+    s, m = found["settings"], found["margins"]
+    b = [h(2, "From cells to a map (experiment `map`)")]
+    b.append(
+        p(
+            f"The paper's proposed map, built: {s['clusters']} cells (k-means of each "
+            f"representation), a cloned HMM of {s['clones']} clones per cell over cells and 4 "
+            f"action bins (EM, at most {s['em_iters']} iterations, then Viterbi training), on "
+            "each trained world's training split; numbers on its test split "
+            "(`sensorimotor map`). Mean ± sd over seeds (raw: over the map's own seeds). "
+            f"Planning: {s['pairs']} start/goal pairs, {s['budget']} steps each. A claim holds when the "
+            "mean paired per-seed difference exceeds its margin "
+            f"(bits/step {m['predicts']}, balanced room accuracy {m['localises']}, planning "
+            f"success {m['plans']}) and, with two seeds or more, 2 standard errors over seeds "
+            "(planning: 2 standard errors at least the binomial one of its pairs, also with one "
+            "seed). "
+            f"{found['jobs']['fitted']} map(s) fitted this run, {found['jobs']['cached']} cached."
+        )
+    )
+    for world, models in found["worlds"].items():
+        names = list(models)
+        b.append(h(3, f"The map on {world}"))
+        header = ["", *(f"{LABELS.get(n, n)} (n={len(models[n]['seeds'])})" for n in names)]
+        rows = [
+            [label, *(_cell(models[n]["metrics"][key], spec) for n in names)]
+            for key, _, label, spec in METRICS
+        ]
+        b.append(table(header, rows))
+        rows = [
+            [what, *(_claim_text(models[n]["claims"][c]) for n in names)]
+            for c, (what, _, _) in CLAIMS.items()
+        ]
+        b.append(table(["claim (paired difference)", *header[1:]], rows))
+        shown = found["figures"].get(world, {})
+        trained = [n for n in MODELS[1:] if n in shown]  # the last of MODELS: Rec-SM if there
+        pick = trained[-1] if trained else next(iter(shown), None)
+        if pick is not None:
+            for fig, caption in zip(
+                FIGURES,
+                ("place fields of the map's states", "the map's graph at its states' positions"),
+                strict=True,
+            ):
+                path = Path(rep.out) / shown[pick][fig]
+                if path.exists():
+                    b.append(image(path, f"{LABELS.get(pick, pick)} on {world}: {caption}"))
+    return b
