@@ -1,5 +1,6 @@
 """Why the map does not localise: how much the cell sequence says about the room at all."""
 
+import os
 import sys
 import time
 
@@ -12,14 +13,19 @@ from sensorimotor.analysis.clusters import assign_clusters, fit_kmeans
 from sensorimotor.analysis.mapping import balanced_accuracy
 from sensorimotor.sim.database import load_database
 
+# DATA: the folder of {world}.npz (sensorimotor generate WORLD --steps 1000000 --seed 0);
+# Z: the z_s cache of zprep.py. Both from the environment; run from the project root.
+DATA = os.environ.get("DATA", "data")
+Z = os.environ.get("Z", "z")
+
 world, name = sys.argv[1], sys.argv[2]
-db = load_database(f"/work/scratch/i22/{world}.npz")
+db = load_database(f"{DATA}/{world}.npz")
 
 
 def z(split):
     if name == "raw":
         return representation_of("raw", db, split)
-    return np.load(f"/work/scratch/i22/z2/{name}__{split}.npy")
+    return np.load(f"{Z}/{name}__{split}.npy")
 
 
 ztr, zte = z("train"), z("test")

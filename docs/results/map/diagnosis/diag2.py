@@ -1,5 +1,6 @@
 """How many bits per step knowing the room could add to next-cell prediction (the EM's incentive)."""
 
+import os
 import sys
 
 import numpy as np
@@ -9,15 +10,20 @@ from sensorimotor.analysis.cells import action_bins
 from sensorimotor.analysis.clusters import assign_clusters, fit_kmeans
 from sensorimotor.sim.database import load_database
 
+# DATA: the folder of {world}.npz (sensorimotor generate WORLD --steps 1000000 --seed 0);
+# Z: the z_s cache of zprep.py. Both from the environment; run from the project root.
+DATA = os.environ.get("DATA", "data")
+Z = os.environ.get("Z", "z")
+
 world, name = sys.argv[1], sys.argv[2]
-db = load_database(f"/work/scratch/i22/{world}.npz")
+db = load_database(f"{DATA}/{world}.npz")
 
 
 def z(split):
     return (
         representation_of("raw", db, split)
         if name == "raw"
-        else np.load(f"/work/scratch/i22/z2/{name}__{split}.npy")
+        else np.load(f"{Z}/{name}__{split}.npy")
     )
 
 

@@ -1,6 +1,7 @@
 """Item 2: does the CSCG recipe (more clones, longer EM, pseudocount) make the map localise?
 Fits on the first N training steps of one representation; numbers on the whole test split."""
 
+import os
 import sys
 import time
 
@@ -13,16 +14,21 @@ from sensorimotor.analysis.clusters import assign_clusters, fit_kmeans
 from sensorimotor.analysis.mapping import Steps, grid_index, localisation
 from sensorimotor.sim.database import load_database
 
+# DATA: the folder of {world}.npz (sensorimotor generate WORLD --steps 1000000 --seed 0);
+# Z: the z_s cache of zprep.py. Both from the environment; run from the project root.
+DATA = os.environ.get("DATA", "data")
+Z = os.environ.get("Z", "z")
+
 world, name, n = sys.argv[1], sys.argv[2], int(sys.argv[3])
 variants = [v.split(":") for v in sys.argv[4:]]  # clones:em_iters:pseudocount
-db = load_database(f"/work/scratch/i22/{world}.npz")
+db = load_database(f"{DATA}/{world}.npz")
 
 
 def z(split):
     return (
         representation_of("raw", db, split)
         if name == "raw"
-        else np.load(f"/work/scratch/i22/z2/{name}__{split}.npy")
+        else np.load(f"{Z}/{name}__{split}.npy")
     )
 
 

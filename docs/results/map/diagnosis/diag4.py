@@ -1,6 +1,7 @@
 """Is it the read-out? A causal window (decay time 200 steps) of the filtered map-state posterior
 (or of the cells) -> room, by logistic regression fitted on the training split."""
 
+import os
 import sys
 import time
 
@@ -15,15 +16,20 @@ from sensorimotor.analysis.clusters import assign_clusters, fit_kmeans
 from sensorimotor.analysis.mapping import balanced_accuracy
 from sensorimotor.sim.database import load_database
 
+# DATA: the folder of {world}.npz (sensorimotor generate WORLD --steps 1000000 --seed 0);
+# Z: the z_s cache of zprep.py. Both from the environment; run from the project root.
+DATA = os.environ.get("DATA", "data")
+Z = os.environ.get("Z", "z")
+
 world, name, n, W = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
-db = load_database(f"/work/scratch/i22/{world}.npz")
+db = load_database(f"{DATA}/{world}.npz")
 
 
 def z(split):
     return (
         representation_of("raw", db, split)
         if name == "raw"
-        else np.load(f"/work/scratch/i22/z2/{name}__{split}.npy")
+        else np.load(f"{Z}/{name}__{split}.npy")
     )
 
 
