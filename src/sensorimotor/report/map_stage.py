@@ -25,7 +25,6 @@ seed. It is **n/a** where the number is (a world without named rooms, no plannin
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 from pathlib import Path
@@ -34,6 +33,7 @@ import numpy as np
 
 from sensorimotor.errors import InputError
 from sensorimotor.files import file_hash, write_json_atomic
+from sensorimotor.report.cache import read_key, stage_key
 from sensorimotor.report.document import h, image, p, table
 from sensorimotor.report.workers import Job
 from sensorimotor.version import __version__
@@ -73,17 +73,6 @@ CLAIMS = {
 }
 FIGURES = ("place_fields.png", "map_graph.png")  # shown for each world's first seed
 MARGINS = {"predicts": 0.05, "localises": 0.02, "plans": 0.05}  # bits/step; accuracy; rate
-
-
-def _key(obj) -> str:
-    return hashlib.sha256(json.dumps(obj, sort_keys=True).encode()).hexdigest()[:16]
-
-
-def _read_key(path: Path) -> str | None:
-    try:
-        return json.loads(path.read_text())["key"]
-    except (OSError, ValueError, KeyError, TypeError):
-        return None
 
 
 def _map_job(run: str, data: str, out: str, seed: int, pairs: int, key: str) -> dict:
@@ -128,7 +117,7 @@ def jobs_of(rep, folder: Path) -> tuple[list[Job], list[tuple]]:
     for world, model, name, run, seed in targets(rep):
         dest = folder / name
         model_hash = "raw" if run == "raw" else file_hash(Path(run) / "model.pt")
-        key = _key(
+        key = stage_key(
             {
                 "model": model_hash,
                 "data": data_hash[world],
@@ -139,7 +128,7 @@ def jobs_of(rep, folder: Path) -> tuple[list[Job], list[tuple]]:
             }
         )
         maps.append((world, model, name, seed, dest))
-        if (dest / "map.json").exists() and _read_key(dest / "stage.json") == key:
+        if (dest / "map.json").exists() and read_key(dest / "stage.json") == key:
             continue
         args = (run, str(rep.data[world]), str(dest), seed, settings["pairs"], key)
         jobs.append(Job(f"map {name}", _map_job, args))

@@ -14,7 +14,6 @@ missing; a killed run resumes, losing nothing finished):
 
 from __future__ import annotations
 
-import hashlib
 import json
 import shutil
 import sys
@@ -29,6 +28,7 @@ from sensorimotor.files import file_hash, write_json_atomic
 from sensorimotor.learn.models import MODEL_KINDS
 from sensorimotor.learn.runs import count
 from sensorimotor.report.backend import GPU_SHARE, job_runner
+from sensorimotor.report.cache import read_key, stage_key
 from sensorimotor.report.workers import Job, hardware, report
 from sensorimotor.version import __version__
 
@@ -76,18 +76,6 @@ SCALES = {
     ),
     "paper": Scale("paper", 1_000_000, 5, {}),
 }
-
-
-def stage_key(obj) -> str:
-    """A short stable hash of a JSON-able description of a stage's inputs."""
-    return hashlib.sha256(json.dumps(obj, sort_keys=True).encode()).hexdigest()[:16]
-
-
-def _read_key(path: Path) -> str | None:
-    try:
-        return json.loads(path.read_text())["key"]
-    except (OSError, ValueError, KeyError, TypeError):
-        return None
 
 
 def _write_json(path: Path, obj) -> None:
@@ -306,7 +294,7 @@ def _eval_job_of(rep: Reproduction, world: str, model: str, seed: int, data_hash
     run = rep.run_dir(world, model, seed)
     path = _eval_path(rep, run.name)
     key = stage_key({"model": file_hash(run / "model.pt"), "data": data_hash})
-    if _read_key(path) == key:
+    if read_key(path) == key:
         return None
     data_list = [str(rep.data[w]) for w in WORLDS]
     return Job(run.name, _eval_job, (str(run), data_list, str(path), key))
@@ -353,7 +341,7 @@ def _analysis_job_of(target: Target, path_hash: dict[str, str]) -> Job | None:
         }
     )
     metrics_path = Path(dest) / "metrics.json"
-    if metrics_path.exists() and _read_key(Path(dest) / "stage.json") == key:
+    if metrics_path.exists() and read_key(Path(dest) / "stage.json") == key:
         return None
     return Job(name, _analysis_job, (run, data, dest, fit, key))
 
@@ -466,7 +454,7 @@ def _reproduce(
             path = out / "data" / f"{world}.npz"
             key = _data_key(world, sc)
             rep.data[world] = path
-            if path.exists() and _read_key(path.with_suffix(".json")) == key:
+            if path.exists() and read_key(path.with_suffix(".json")) == key:
                 continue
             jobs.append(Job(f"data {world}", _data_job, (world, sc.steps, 0, str(path), key)))
         rep.timings["data"] = {"jobs": len(jobs), "cached": len(WORLDS) - len(jobs)}

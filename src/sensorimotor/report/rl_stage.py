@@ -17,13 +17,12 @@ DESIGN.md says why); the deterministic one is shown beside it.
 
 from __future__ import annotations
 
-import hashlib
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
 from sensorimotor.errors import InputError
 from sensorimotor.files import file_hash
+from sensorimotor.report.cache import stage_key
 from sensorimotor.report.document import Block, h, image, p, table
 from sensorimotor.rl.results import CLAIM, HEADLINE, MIN_SEEDS, THRESHOLD
 from sensorimotor.version import __version__
@@ -104,7 +103,7 @@ def grid_key(config) -> str:
         "weights": weights,
         "version": __version__,
     }
-    return hashlib.sha256(json.dumps(described, sort_keys=True).encode()).hexdigest()[:16]
+    return stage_key(described)
 
 
 def run(ctx) -> dict:

@@ -24,7 +24,6 @@ unknown (rows of 10 worlds; training reads readings and commands alone).
 
 from __future__ import annotations
 
-import hashlib
 import json
 import shutil
 from collections.abc import Sequence
@@ -38,6 +37,7 @@ from sensorimotor.files import file_hash, write_json_atomic
 from sensorimotor.learn.evaluate import mean_sd
 from sensorimotor.learn.models import MODEL_KINDS
 from sensorimotor.learn.runs import run_name
+from sensorimotor.report.cache import read_key, stage_key
 from sensorimotor.report.scaling_report import KINDS, finite, plot_errors, section, verdicts
 from sensorimotor.report.workers import Job, report
 from sensorimotor.version import __version__
@@ -101,18 +101,6 @@ def conditions() -> list[Condition]:
         ),
         Condition("plans", f"{PLANS} generated plans, tested on {PLANS} unseen", plans=PLANS),
     ]
-
-
-def key_of(obj) -> str:
-    """A short stable hash of a JSON-able description of a stage's inputs."""
-    return hashlib.sha256(json.dumps(obj, sort_keys=True).encode()).hexdigest()[:16]
-
-
-def _read_key(path: Path) -> str | None:
-    try:
-        return json.loads(path.read_text())["key"]
-    except (OSError, ValueError, KeyError, TypeError):
-        return None
 
 
 # --- jobs (module-level: they run in worker processes) ---------------------------------------
@@ -191,7 +179,7 @@ def _train_job(data: str, runs: list[tuple[int, str]], config: dict, key: str) -
     for _, run_dir in runs:
         run = Path(run_dir)
         run.parent.mkdir(parents=True, exist_ok=True)
-        if run.exists() and _read_key(_mark(run)) != key:
+        if run.exists() and read_key(_mark(run)) != key:
             shutil.rmtree(run)
     names = [Path(r).name for _, r in runs]
 
@@ -254,8 +242,8 @@ def _data_stage(ctx, size: Size, conds: Sequence[Condition]) -> tuple[list[Plan]
     plans, jobs, merges = [], [], []
 
     def need(path: Path, spec: dict) -> None:
-        key = key_of(spec)
-        if not (path.exists() and _read_key(path.with_suffix(".json")) == key):
+        key = stage_key(spec)
+        if not (path.exists() and read_key(path.with_suffix(".json")) == key):
             jobs.append(Job(f"data {path.stem}", _data_job, (spec, str(path), key)))
 
     for cond in conds:
@@ -274,8 +262,8 @@ def _data_stage(ctx, size: Size, conds: Sequence[Condition]) -> tuple[list[Plan]
                 parts[side].append(path)
         merged = root / f"{cond.name}.npz"
         spec = [_spec(cond, size.plan_steps, p.name, 0) for p in parts["train"]]  # not where
-        key = key_of({"merge": spec, "version": __version__})
-        if not (merged.exists() and _read_key(merged.with_suffix(".json")) == key) or any(
+        key = stage_key({"merge": spec, "version": __version__})
+        if not (merged.exists() and read_key(merged.with_suffix(".json")) == key) or any(
             job.name.startswith(f"data {cond.name}-") for job in jobs
         ):
             args = ([str(p) for p in parts["train"]], str(merged), f"{cond.name}-train", key)
@@ -322,7 +310,7 @@ def _train_jobs(ctx, size: Size, plans: list[Plan], device: str, hashes: dict) -
     for plan in plans:
         for model in MODEL_KINDS:
             config = _train_config(size, model, device)
-            key = key_of(
+            key = stage_key(
                 {
                     "data": hashes[plan.train_data],
                     "train": config,
@@ -393,10 +381,10 @@ def run_conditions(ctx, size: Size, conds: Sequence[Condition], device: str = "c
     jobs = []
     for plan in plans:
         for run, data, out in _eval_targets(ctx, plan, size):
-            key = key_of(
+            key = stage_key(
                 {"model": file_hash(Path(run) / "model.pt"), "data": [hashes[d] for d in data]}
             )
-            if _read_key(out) != key:
+            if read_key(out) != key:
                 out.parent.mkdir(parents=True, exist_ok=True)
                 jobs.append(
                     Job(Path(run).name, _eval_job, (run, [str(d) for d in data], str(out), key))
@@ -408,7 +396,7 @@ def run_conditions(ctx, size: Size, conds: Sequence[Condition], device: str = "c
     for plan in plans:
         for _, run, data, out in _analysis_targets(ctx, plan, size):
             model = "raw" if run == "raw" else file_hash(Path(run) / "model.pt")
-            key = key_of(
+            key = stage_key(
                 {
                     "model": model,
                     "data": hashes[Path(data)],
@@ -416,7 +404,7 @@ def run_conditions(ctx, size: Size, conds: Sequence[Condition], device: str = "c
                     "metrics": METRICS_VERSION,
                 }
             )
-            if not ((out / "metrics.json").exists() and _read_key(out / "stage.json") == key):
+            if not ((out / "metrics.json").exists() and read_key(out / "stage.json") == key):
                 jobs.append(Job(out.name, _analysis_job, (run, data, str(out), key)))
     _run_stage(ctx, jobs)
     ran["analyze"] = len(jobs)
