@@ -63,6 +63,21 @@ def test_the_grid_runs_as_jobs_is_cached_and_its_section_reads_it(tmp_path, tiny
     assert "1 seed(s): no verdict" in markdown
 
 
+def test_a_task_that_the_common_budget_teaches_nothing_gets_its_own(monkeypatch):
+    """quick: explore trains 500,000 steps, the other tasks 40,000; the section says so."""
+    rep = fake_rep(Path("/nowhere"))
+    rep.scale = SimpleNamespace(name="quick")
+    configs = rl_stage.configs(rep)
+    assert {t: (c.steps, c.eval_every) for t, c in configs.items()} == {
+        "corner": (40_000, 20_000),
+        "doorway": (40_000, 20_000),
+        "explore": (500_000, 125_000),
+    }
+    steps = {"corner": 40_000, "doorway": 40_000, "explore": 500_000}
+    assert rl_stage._steps(steps) == "40,000 steps each (explore: 500,000)"
+    assert rl_stage._steps({"corner": 512}) == "512 steps each"
+
+
 def test_doorway_is_not_sent_to_a_world_without_two_rooms(tiny, monkeypatch):
     monkeypatch.setattr(rl_stage, "TASKS", ("doorway",))
     (config,) = rl_stage.configs(fake_rep(Path("/nowhere"))).values()
