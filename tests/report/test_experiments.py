@@ -64,3 +64,19 @@ def test_numbers_that_are_not_json_are_refused_and_nothing_is_written(echo, tmp_
     with pytest.raises(InputError, match="value is nan"):
         ex.run_experiment(ctx)
     assert not (tmp_path / "echo" / "echo.json").exists()
+
+
+def test_a_failed_job_is_raised_as_the_experiments_one_line(tmp_path):
+    from sensorimotor.report.workers import JobFailure
+
+    def runner(failure):
+        return lambda jobs, workers, progress: ({"a": 1}, [failure] if failure else [])
+
+    def ctx(failure):
+        return ex.Context(SimpleNamespace(out=tmp_path), "echo", runner(failure), 1, None, print)
+
+    assert ctx(None).run([]) == {"a": 1}
+    with pytest.raises(InputError, match=r"^echo: b: cannot square -1$"):
+        ctx(JobFailure("b", InputError("cannot square -1"))).run([])
+    with pytest.raises(RuntimeError, match=r"^echo: c failed$"):
+        ctx(JobFailure("c", ZeroDivisionError("x"))).run([])

@@ -45,6 +45,17 @@ class Context:
     progress: Callable[[str, str], None]  # (job name, message)
     log: Callable[[str], None]
 
+    def run(self, jobs: list) -> dict:
+        """Run ``jobs`` on the reproduction's runner; their results by name. The first failure
+        is raised, an InputError as its one line."""
+        results, failures = self.run_jobs(jobs, self.workers, self.progress)
+        if failures:
+            first = failures[0]
+            if isinstance(first.error, InputError):
+                raise InputError(f"{self.name}: {first.name}: {first.error}")
+            raise RuntimeError(f"{self.name}: {first.name} failed") from first.error
+        return results
+
     @property
     def dir(self) -> Path:
         """``OUT/NAME/``: the experiment's own folder (made before ``run``)."""

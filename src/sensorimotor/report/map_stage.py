@@ -31,7 +31,6 @@ from pathlib import Path
 
 import numpy as np
 
-from sensorimotor.errors import InputError
 from sensorimotor.files import file_hash, write_json_atomic
 from sensorimotor.report.cache import read_key, stage_key
 from sensorimotor.report.document import h, image, p, table
@@ -207,12 +206,7 @@ def run(ctx) -> dict:
     rep = ctx.rep
     jobs, maps = jobs_of(rep, ctx.dir)
     ctx.log(f"  {len(jobs)} map(s) to fit, {len(maps) - len(jobs)} cached")
-    _, failures = ctx.run_jobs(jobs, ctx.workers, ctx.progress)
-    if failures:
-        first = failures[0]
-        if isinstance(first.error, InputError):
-            raise InputError(f"{first.name}: {first.error}")
-        raise RuntimeError(f"{first.name} failed") from first.error
+    ctx.run(jobs)
     per_map = []
     figures: dict[str, dict] = {}
     for world, model, _name, seed, dest in maps:

@@ -348,16 +348,6 @@ def _analysis_targets(ctx, plan: Plan, size: Size) -> list[tuple[str, str, str, 
     return out
 
 
-def _run_stage(ctx, jobs: list[Job]) -> dict:
-    results, failures = ctx.run_jobs(jobs, ctx.workers, ctx.progress)
-    if failures:
-        first = failures[0]
-        if isinstance(first.error, InputError):
-            raise InputError(f"scaling: {first.name}: {first.error}")
-        raise RuntimeError(f"scaling: {first.name} failed") from first.error
-    return results
-
-
 def run_conditions(ctx, size: Size, conds: Sequence[Condition], device: str = "cpu") -> dict:
     """Every stage of ``conds`` (cached); their numbers by condition name, and ``jobs``: how
     many jobs each stage ran (0 when everything was kept)."""
@@ -368,14 +358,14 @@ def run_conditions(ctx, size: Size, conds: Sequence[Condition], device: str = "c
 
     ran = {}
     plans, jobs, merges = _data_stage(ctx, size, conds)
-    _run_stage(ctx, jobs)
-    _run_stage(ctx, merges)
+    ctx.run(jobs)
+    ctx.run(merges)
     ran["data"] = len(jobs) + len(merges)
     paths = {p for plan in plans for p in (plan.train_data, *plan.test_data, *plan.seen_data)}
     hashes = {p: file_hash(p) for p in paths}
 
     jobs = _train_jobs(ctx, size, plans, device, hashes)
-    _run_stage(ctx, jobs)
+    ctx.run(jobs)
     ran["train"] = len(jobs)
 
     jobs = []
@@ -389,7 +379,7 @@ def run_conditions(ctx, size: Size, conds: Sequence[Condition], device: str = "c
                 jobs.append(
                     Job(Path(run).name, _eval_job, (run, [str(d) for d in data], str(out), key))
                 )
-    _run_stage(ctx, jobs)
+    ctx.run(jobs)
     ran["evaluate"] = len(jobs)
 
     jobs = []
@@ -406,7 +396,7 @@ def run_conditions(ctx, size: Size, conds: Sequence[Condition], device: str = "c
             )
             if not ((out / "metrics.json").exists() and read_key(out / "stage.json") == key):
                 jobs.append(Job(out.name, _analysis_job, (run, data, str(out), key)))
-    _run_stage(ctx, jobs)
+    ctx.run(jobs)
     ran["analyze"] = len(jobs)
 
     found = {}
