@@ -239,3 +239,22 @@ def test_errors_name_an_in_memory_database_by_its_world(two_seeds):
         r"trained on 5 rays .* range 10$",
     ):
         representation(two_seeds / "sm0", db)
+
+
+def test_a_recurrent_pass_runs_on_one_thread_and_gives_the_threads_back(monkeypatch):
+    seen: list[int] = []
+    model = build_model("rec-sm", seed=0)
+    forward = model.forward
+    monkeypatch.setattr(
+        model, "forward", lambda *a: seen.append(torch.get_num_threads()) or forward(*a)
+    )
+    s, m = torch.rand(50, 5), torch.rand(50, 2) - 0.5
+    before = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        _, z = run_model(model, s, m)
+        assert torch.get_num_threads() == 2
+    finally:
+        torch.set_num_threads(before)
+    assert seen == [1]
+    assert z.shape == (50, 10)

@@ -78,10 +78,6 @@ def map_cmd(
     from sensorimotor.analysis.mapping import check_settings, map_files, summary_lines
 
     check_settings(clusters, clones)
-    if run != "raw":  # a model steps one reading at a time: more threads only wait on each other
-        import torch  # (z of 900,000 steps: 3 s on one thread, 545 s on two, loaded 2-core box)
-
-        torch.set_num_threads(1)
     with err_console.status(f"mapping {run} on {data}") as status:
 
         def note(stage: str, i: int, ll: float) -> None:
