@@ -9,6 +9,7 @@ from types import SimpleNamespace
 
 import pytest
 
+from sensorimotor.errors import InputError
 from sensorimotor.learn.runs import TrainConfig
 from sensorimotor.learn.train import train
 from sensorimotor.report import experiments as ex
@@ -120,3 +121,9 @@ def test_run_maps_raw_and_each_run_caches_them_and_the_section_reads_them(
     assert "the map localises the room better than its cells" in md
     assert "map/rooms1__s__s0/place_fields.png" in md  # the trained run's figure, not raw's
     assert "n=1" in md
+
+    # a cached map.json cut short: one line naming it, not a traceback
+    cut = tiny_rep.out / "map" / "rooms1__s__s0" / "map.json"
+    cut.write_text(cut.read_text()[:100])
+    with pytest.raises(InputError, match=r"rooms1__s__s0/map\.json: not a readable map"):
+        ex.run_experiment(ctx)

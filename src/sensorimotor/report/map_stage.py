@@ -25,13 +25,12 @@ seed. It is **n/a** where the number is (a world without named rooms, no plannin
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
 import numpy as np
 
-from sensorimotor.files import file_hash, write_json_atomic
+from sensorimotor.files import file_hash, read_json, write_json_atomic
 from sensorimotor.report.cache import read_key, stage_key
 from sensorimotor.report.document import h, image, p, table
 from sensorimotor.report.workers import Job
@@ -210,7 +209,7 @@ def run(ctx) -> dict:
     per_map = []
     figures: dict[str, dict] = {}
     for world, model, _name, seed, dest in maps:
-        per_map.append((world, model, seed, json.loads((dest / "map.json").read_text())))
+        per_map.append((world, model, seed, read_json(dest / "map.json", "map")))
         if seed == min(s for w, m, _, s, _ in maps if w == world and m == model):
             shown = {f: str((dest / f).relative_to(rep.out)) for f in FIGURES}
             figures.setdefault(world, {})[model] = shown

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from sensorimotor.errors import InputError
-from sensorimotor.files import file_hash, write_json_atomic
+from sensorimotor.files import file_hash, read_json, write_json_atomic
 from sensorimotor.learn.evaluate import mean_sd
 from sensorimotor.learn.models import MODEL_KINDS
 from sensorimotor.learn.runs import run_name
@@ -402,11 +402,12 @@ def run_conditions(ctx, size: Size, conds: Sequence[Condition], device: str = "c
     found = {}
     for plan in plans:
         evals = [
-            json.loads(out.read_text())["result"] for _, _, out in _eval_targets(ctx, plan, size)
+            read_json(out, "evaluation")["result"] for _, _, out in _eval_targets(ctx, plan, size)
         ]
-        test_names = [load_database(p).meta["world"]["name"] for p in plan.test_data]
+        tests = [load_database(p) for p in plan.test_data]
+        test_names = [db.meta["world"]["name"] for db in tests]
         seen_names = [load_database(p).meta["world"]["name"] for p in plan.seen_data]
-        base = [baselines(load_database(p)) for p in plan.test_data]
+        base = [baselines(db) for db in tests]
         numbers: dict[str, dict[str, list]] = {k: {} for k in KINDS}
         targets = _analysis_targets(ctx, plan, size)
         for db in plan.test_data:  # claims.claim_numbers of each test database's analyses
@@ -414,8 +415,8 @@ def run_conditions(ctx, size: Size, conds: Sequence[Condition], device: str = "c
             analyses, runs = {}, []
             for kind, run, out in mine:
                 seed = int(Path(run).name.rsplit("__s", 1)[1]) if kind != "raw" else 0
-                analyses["raw__w" if kind == "raw" else run_name("w", kind, seed)] = json.loads(
-                    (out / "metrics.json").read_text()
+                analyses["raw__w" if kind == "raw" else run_name("w", kind, seed)] = read_json(
+                    out / "metrics.json", "analysis"
                 )
                 if kind != "raw":
                     runs.append(("w", kind, seed))
