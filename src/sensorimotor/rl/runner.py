@@ -76,7 +76,7 @@ class RLConfig:
             "learning_rate": 3e-4,
             "gamma": 0.99,
             "gae_lambda": 0.95,
-            "ent_coef": 0.0,
+            "ent_coef": 0.01,  # 0.0 let the pose policy settle into a short loop on explore
         }
     )
     """stable-baselines3 PPO arguments (MlpPolicy, 2 x 64 tanh)."""
