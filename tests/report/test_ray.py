@@ -67,7 +67,7 @@ def test_jobs_on_ray_give_what_local_jobs_give(cluster):
 
 def _sleep_then_write(path: str) -> None:
     report(path, "started")
-    time.sleep(2)
+    time.sleep(5)  # long enough for a cancel to land on a loaded machine
     Path(path).write_text("finished")
 
 
@@ -80,7 +80,7 @@ def test_ctrl_c_cancels_the_runs_tasks(cluster, tmp_path):
     jobs = [Job(p, _sleep_then_write, (p,)) for p in paths]
     with pytest.raises(KeyboardInterrupt):
         ray_backend.run_jobs(jobs, 2, interrupt)
-    time.sleep(3)  # a task left running would have written its file by now
+    time.sleep(6)  # a task left running would have written its file by now
     assert not any(Path(p).exists() for p in paths)
 
 
