@@ -1,0 +1,28 @@
+"""The report section of the full Rooms1 grid, from its three rl.json (as reproduce writes it)."""
+
+import json
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+from sensorimotor.report import rl_stage
+from sensorimotor.report.document import to_markdown
+
+out = Path(sys.argv[1])
+tasks, steps = {}, {}
+for task in rl_stage.TASKS:
+    rl = json.loads((out / task / "rl.json").read_text())
+    for r in rl["results"].values():
+        del r["curve"]
+    tasks[task] = {"folder": task, "rl": rl}
+    steps[task] = rl["steps"]
+found = {
+    "headline": rl["headline"],
+    "world": "rooms1",
+    "seeds": rl["seeds"],
+    "steps": steps,
+    "eval_episodes": rl["eval_episodes"],
+    "tasks": tasks,
+}
+blocks = rl_stage.section(SimpleNamespace(out=out), found)
+(out / "section.md").write_text(to_markdown(blocks, out))
