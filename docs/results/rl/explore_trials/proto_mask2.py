@@ -1,16 +1,12 @@
 """Prototype: pose + the visited mask (the task's state) for explore; PPO settings as proto_ppo."""
 
 import os
-import sys
 
 import numpy as np
-import torch
 from gymnasium import spaces
 
 import sensorimotor.rl.features as F
-import sensorimotor.rl.runner as R
 import sensorimotor.rl.vec_env as V
-from sensorimotor.cli.app import app
 
 orig_one = V.TaskVecEnv._reset_one
 
@@ -64,24 +60,4 @@ def step_wait(self):
 
 F.FeatureVecEnv.__init__, F.FeatureVecEnv.reset, F.FeatureVecEnv.step_wait = init, reset, step_wait
 
-Orig = R.PPO
-
-
-def PPO(*a, **k):
-    pk = {}
-    if os.environ.get("NET"):
-        n = [int(x) for x in os.environ["NET"].split(",")]
-        pk["net_arch"] = dict(pi=n, vf=n)
-    if os.environ.get("ACT") == "relu":
-        pk["activation_fn"] = torch.nn.ReLU
-    if pk:
-        k["policy_kwargs"] = pk
-    if os.environ.get("ENT"):
-        k["ent_coef"] = float(os.environ["ENT"])
-    return Orig(*a, **k)
-
-
-R.PPO = PPO
-
-sys.argv = ["sensorimotor", *sys.argv[1:]]
-app()
+import proto_ppo  # noqa: E402, F401  (PPO settings from the environment, then the command line)

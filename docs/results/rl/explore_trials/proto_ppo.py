@@ -26,6 +26,5 @@ def PPO(*a, **k):
 
 
 R.PPO = PPO
-
 sys.argv = ["sensorimotor", *sys.argv[1:]]
-app()
+app()  # the command line, with the patches of this module and of whoever imported it
