@@ -35,11 +35,22 @@ def _reproduce(out: Path, *extra: str, timeout: float = 900) -> subprocess.Compl
     )
 
 
+def _as_in_a_terminal() -> None:
+    """SIGINT as a terminal's foreground command has it: a suite started in the background of a
+    non-interactive shell inherits it ignored, and Python then never raises KeyboardInterrupt."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _start_until_a_checkpoint(out: Path, stderr) -> subprocess.Popen:
     """Start the smoke reproduction in its own process group; return once a training has
     written its first checkpoint, with the run still going."""
     proc = subprocess.Popen(
-        _command(out), stdout=subprocess.DEVNULL, stderr=stderr, text=True, start_new_session=True
+        _command(out),
+        stdout=subprocess.DEVNULL,
+        stderr=stderr,
+        text=True,
+        start_new_session=True,
+        preexec_fn=_as_in_a_terminal,
     )
     deadline = time.time() + 300
     while time.time() < deadline and not list((out / "runs").glob("*/checkpoint.pt")):
