@@ -55,8 +55,8 @@ EXPLORE = {"explore": (500_000, 125_000)}
 PLANS = {
     # a smoke test of the pipeline: one 512-step rollout per agent, 10 evaluation episodes
     "smoke": Plan(512, 512, 10, {"n_steps": 64, "batch_size": 64, "n_epochs": 2}),
-    "quick": Plan(40_000, 20_000, 50, longer=EXPLORE),  # what docs/results/rl/rooms1_grid ran
-    "paper": Plan(100_000, 25_000, 50, longer=EXPLORE),
+    "quick": Plan(40_000, 20_000, 50, longer=EXPLORE),  # docs/results/rl/rooms1_grid (no bonus)
+    "paper": Plan(100_000, 25_000, 50, longer=EXPLORE),  # docs/results/rl/rooms1_full
 }
 
 

@@ -1,7 +1,9 @@
 """Item 5: a slow-context start. Each cell's clones start as the k-means clusters (C of them) of
 the decayed history of cells (time constant TAU steps); the transitions are counted along that
 path, then EM (ITERS iterations, 0 = none) and Viterbi training as ``chmm.fit_chmm``. Fits on
-the first N training steps; numbers on the whole test split. Arguments: WORLD RUN N TAU:C:ITERS..."""
+the first N training steps; numbers on the whole test split. Arguments: WORLD RUN N TAU:C:ITERS...
+With PLAN=P in the environment, also the planner of ``planning.planning`` over P pairs, seeded as
+``sensorimotor map`` seeds run seed 0's (the same pairs as the shipped map of that seed)."""
 
 import os
 import sys
@@ -14,12 +16,15 @@ from sensorimotor.analysis.analyze import representation_of
 from sensorimotor.analysis.cells import action_bins
 from sensorimotor.analysis.clusters import assign_clusters, fit_kmeans
 from sensorimotor.analysis.mapping import Steps, localisation
+from sensorimotor.analysis.planning import encoder_of, planning
+from sensorimotor.learn.evaluate import load_run
 from sensorimotor.sim.database import load_database
 
 # DATA: the folder of {world}.npz (sensorimotor generate WORLD --steps 1000000 --seed 0);
 # Z: the z_s cache of zprep.py. Both from the environment; run from the project root.
 DATA = os.environ.get("DATA", "data")
 Z = os.environ.get("Z", "z")
+PLAN = int(os.environ.get("PLAN", "0"))
 K = 20
 
 world, name, n = sys.argv[1], sys.argv[2], int(sys.argv[3])
@@ -86,7 +91,15 @@ for spec in sys.argv[4:]:
     T0 = chmm._path_counts(tr.cells * C + context, tr.actions, (4, K * C, K * C))
     m = fit_from(chmm._normalise(T0, chmm.PSEUDOCOUNT), tr.cells, tr.actions, C, iters)
     bits = -chmm.log_likelihood(m.T, te.cells, te.actions, C)[1:].mean() / np.log(2)
-    loc, _, _ = localisation(m, tr, te, db.world)
+    loc, state_mean, occupancy = localisation(m, tr, te, db.world)
+    plan = ""
+    if PLAN:
+        run = load_run(f"docs/results/runs/{name}") if name != "raw" else "raw"
+        encoder = encoder_of(run, db.max_range)
+        plans, _ = planning(db.world, db.layout, encoder, km, m, state_mean, occupancy, 0, PLAN)
+        plan = (
+            f"; planning map {plans['success']['map']:.2f} random {plans['success']['random']:.2f}"
+        )
     r, b = loc["room_accuracy"], loc["balanced_room_accuracy"]
     print(
         f"{world} {name} tau={tau} C={C} em={iters}: bits {bits:.3f}, active {m.active.sum()}; "
@@ -94,6 +107,6 @@ for spec in sys.argv[4:]:
         f"balanced map {b['map']:.3f} cells {b['cells']:.3f}; "
         f"grid map {loc['grid_accuracy']['map']:.3f} cells {loc['grid_accuracy']['cells']:.3f}; "
         f"pos err map {loc['position_error']['map']:.2f} cells {loc['position_error']['cells']:.2f}"
-        f" ({time.time() - t0:.0f} s)",
+        f"{plan} ({time.time() - t0:.0f} s)",
         flush=True,
     )
