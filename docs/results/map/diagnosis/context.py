@@ -3,7 +3,7 @@ the decayed history of cells (time constant TAU steps); the transitions are coun
 path, then EM (ITERS iterations, 0 = none) and Viterbi training as ``chmm.fit_chmm``. Fits on
 the first N training steps; numbers on the whole test split. Arguments: WORLD RUN N TAU:C:ITERS...
 With PLAN=P in the environment, also the planner of ``planning.planning`` over P pairs, seeded as
-``sensorimotor map`` seeds run seed 0's (the same pairs as the shipped map of that seed)."""
+``sensorimotor map`` seeds a run's (k-means and pairs by the run's seed, as the shipped maps)."""
 
 import os
 import sys
@@ -28,6 +28,7 @@ PLAN = int(os.environ.get("PLAN", "0"))
 K = 20
 
 world, name, n = sys.argv[1], sys.argv[2], int(sys.argv[3])
+SEED = int(name.rsplit("__s", 1)[1]) if "__s" in name else 0
 db = load_database(f"{DATA}/{world}.npz")
 
 
@@ -37,7 +38,7 @@ def z(split):
     return np.load(f"{Z}/{name}__{split}.npy")
 
 
-km = fit_kmeans(z("train"), K, 0)
+km = fit_kmeans(z("train"), K, SEED)
 
 
 def steps(split, m=None):
@@ -96,7 +97,7 @@ for spec in sys.argv[4:]:
     if PLAN:
         run = load_run(f"docs/results/runs/{name}") if name != "raw" else "raw"
         encoder = encoder_of(run, db.max_range)
-        plans, _ = planning(db.world, db.layout, encoder, km, m, state_mean, occupancy, 0, PLAN)
+        plans, _ = planning(db.world, db.layout, encoder, km, m, state_mean, occupancy, SEED, PLAN)
         plan = (
             f"; planning map {plans['success']['map']:.2f} random {plans['success']['random']:.2f}"
         )
