@@ -133,8 +133,7 @@ class LaserTaskEnv(LaserWorldEnv):
 
     # --- the task: what it measures at a pose ---------------------------------------------
     def _corner_distance(self) -> float:
-        x, y, _ = self.pose
-        return float(np.hypot(self.corners[:, 0] - x, self.corners[:, 1] - y).min())
+        return float(corner_distances(self.corners, np.array([self.pose]))[0])
 
     def _at_corner(self) -> bool:
         if self._corner_distance() > CORNER_REACH:  # cheap test first: no ray cast
@@ -142,16 +141,8 @@ class LaserTaskEnv(LaserWorldEnv):
         return bool(corner_in_view(self.world, np.array([self.pose]), self.reach_layout)[0])
 
     def _cell(self) -> tuple[int, int]:
-        x, y, _ = self.pose
-        i = min(max(int(x / self.world.width * GRID), 0), GRID - 1)
-        j = min(max(int(y / self.world.height * GRID), 0), GRID - 1)
-        return i, j
-
-    def _in_other_room(self) -> bool:
-        x, y = np.array([self.pose[0]]), np.array([self.pose[1]])
-        if point_in_polygon(self.world.rooms[self.start_room].polygon, x, y)[0]:
-            return False  # still in (or on the edge of) the start room
-        return self._room() >= 0
+        i, j = grid_cells(self.world, np.array([self.pose]))
+        return int(i[0]), int(j[0])
 
     def _task_info(self, info: dict[str, Any]) -> dict[str, Any]:
         info["is_success"] = self.done
@@ -165,25 +156,13 @@ class LaserTaskEnv(LaserWorldEnv):
             raise ValueError(f"action must be 2 finite numbers in [-1, 1], got {action!r}")
         a = np.clip(action.reshape(2), -1.0, 1.0)
         command = np.array([(a[0] + 1.0) / 2.0 * MAX_STEP, a[1] * MAX_TURN])  # (d, r)
-        before = self._corner_distance() if self.task == "corner" else 0.0
+        before = np.array([self._corner_distance()]) if self.task == "corner" else None
         observation, _, _, _, info = super().step(command)
-        reward, terminated = 0.0, False
-        if self.task == "corner":
-            reward = CORNER_PROGRESS * (before - self._corner_distance())
-            if self._at_corner():
-                self.done = terminated = True
-                reward += 1.0
-        elif self.task == "doorway":
-            if self._in_other_room():
-                self.done = terminated = True
-                reward = 1.0
-        else:
-            cell = self._cell()
-            if not self.visited[cell]:
-                self.visited[cell] = True
-                reward = CELL_REWARD
-            self.done = bool(self.visited.mean() >= EXPLORE_SUCCESS)
-        return observation, float(reward), terminated, False, self._task_info(info)
+        rewards, terminated, done = task_step(
+            self, np.array([self.pose]), before, np.array([self.start_room]), self.visited[None]
+        )
+        self.done = bool(done[0])
+        return observation, float(rewards[0]), bool(terminated[0]), False, self._task_info(info)
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         observation, info = super().reset(seed=seed, options=options)  # seeds, draws a pose
@@ -211,3 +190,54 @@ class LaserTaskEnv(LaserWorldEnv):
         if self.task == "doorway":
             return self._room() >= 0
         return True
+
+
+def corner_distances(corners: np.ndarray, poses: np.ndarray) -> np.ndarray:
+    """(N,) distance from each pose (N, 3) to its nearest corner (C, 2)."""
+    dx = corners[None, :, 0] - poses[:, 0, None]  # (N, C)
+    dy = corners[None, :, 1] - poses[:, 1, None]
+    return np.hypot(dx, dy).min(axis=1)
+
+
+def grid_cells(world: World, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The explore grid's cell (i, j), (N,) each, of each pose (N, 3)."""
+    i = np.clip((poses[:, 0] / world.width * GRID).astype(int), 0, GRID - 1)
+    j = np.clip((poses[:, 1] / world.height * GRID).astype(int), 0, GRID - 1)
+    return i, j
+
+
+def task_step(
+    env: LaserTaskEnv,
+    poses: np.ndarray,
+    before: np.ndarray | None,
+    start_room: np.ndarray,
+    visited: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The task's rewards (N,), terminations (N,) and success so far (N,) of N robots of
+    ``env``'s task and world that have just moved to ``poses`` (N, 3); ``before`` (N,) their
+    corner distances before the move (corner), ``start_room`` (N,) (doorway), ``visited``
+    (N, GRID, GRID) updated in place (explore). ``LaserTaskEnv.step`` (N = 1) and
+    ``rl.vec_env.TaskVecEnv`` both score through it (the class docstring's Rewards)."""
+    n = len(poses)
+    rewards, terminated = np.zeros(n), np.zeros(n, dtype=bool)
+    x, y = poses[:, 0], poses[:, 1]
+    if env.task == "corner":
+        after = corner_distances(env.corners, poses)
+        rewards = CORNER_PROGRESS * (before - after)
+        near = np.flatnonzero(after <= CORNER_REACH)  # cheap test first: no ray cast
+        if near.size:
+            terminated[near[corner_in_view(env.world, poses[near], env.reach_layout)]] = True
+        return rewards + terminated, terminated, terminated.copy()  # +1 on reaching a corner
+    if env.task == "doorway":
+        room = env.world.room_index(x, y)  # (N,)
+        for k in np.unique(start_room):
+            mine = np.flatnonzero(start_room == k)
+            still = point_in_polygon(env.world.rooms[k].polygon, x[mine], y[mine])
+            terminated[mine] = ~still & (room[mine] >= 0)  # in another named room
+        return terminated.astype(np.float64), terminated, terminated.copy()
+    i, j = grid_cells(env.world, poses)
+    rows = np.arange(n)
+    new = ~visited[rows, i, j]
+    visited[rows, i, j] = True
+    rewards = np.where(new, CELL_REWARD, 0.0)
+    return rewards, terminated, visited.mean(axis=(1, 2)) >= EXPLORE_SUCCESS

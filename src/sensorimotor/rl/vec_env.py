@@ -9,7 +9,8 @@ bit): the same observations, rewards, ends, ``is_success``, ``terminal_observati
 environment's ``step`` in turn through four wrappers, three ray casts and Python arithmetic
 each; here the motion, the collision check and the readings of all N robots are one call of
 the simulation core (``sim.core.move_many``, the same ray caster and motion as
-``LaserWorldEnv.step``) and the task's rewards are array operations. Environments whose
+``LaserWorldEnv.step``) and the task's rewards one call of ``envs.tasks.task_step``, the
+scoring ``LaserTaskEnv.step`` runs with N = 1. Environments whose
 episode ended are reset one by one by their own ``LaserTaskEnv.reset`` (its start rules).
 
 ``info`` holds what the learning loop reads: ``pose``, ``readings``, ``collision``,
@@ -26,18 +27,9 @@ import numpy as np
 from stable_baselines3.common.vec_env import VecEnv
 
 from sensorimotor.envs.laser_world import MAX_STEP, MAX_TURN, WALL_MARGIN
-from sensorimotor.envs.tasks import (
-    BUDGETS,
-    CELL_REWARD,
-    CORNER_PROGRESS,
-    CORNER_REACH,
-    EXPLORE_SUCCESS,
-    GRID,
-    LaserTaskEnv,
-)
+from sensorimotor.envs.tasks import BUDGETS, GRID, LaserTaskEnv, corner_distances, task_step
 from sensorimotor.sim import core as sim
-from sensorimotor.sim.events import corner_in_view
-from sensorimotor.sim.world import World, point_in_polygon
+from sensorimotor.sim.world import World
 
 
 class TaskVecEnv(VecEnv):
@@ -107,13 +99,15 @@ class TaskVecEnv(VecEnv):
         d = (a[:, 0] + 1.0) / 2.0 * MAX_STEP  # (N,) units
         r = a[:, 1] * MAX_TURN  # (N,) rad
         env = self.envs[0]
-        before = self._corner_distance() if self.task == "corner" else None
+        before = corner_distances(env.corners, self.poses) if self.task == "corner" else None
         hit = np.zeros(self.num_envs, dtype=np.bool_)
         sim.move_many(
             env.segments, self.poses, d, r, env.ahead_range, WALL_MARGIN, env.angles,
             env.max_range, self.readings, hit,
         )  # fmt: skip
-        rewards, terminated = self._task_step(before)
+        rewards, terminated, self.done = task_step(
+            env, self.poses, before, self.start_room, self.visited
+        )  # the tasks' scoring, on every environment at once
         obs = np.clip(self.readings, 0.0, env.max_range).astype(np.float32)  # (N, R)
         self.steps += 1
         self.returns += rewards
@@ -130,44 +124,6 @@ class TaskVecEnv(VecEnv):
             infos[i]["terminal_observation"] = obs[i].copy()
             obs[i], self.reset_infos[i] = self._reset_one(i)
         return obs, rewards.astype(np.float32), dones, infos
-
-    # --- the tasks, on every environment at once (envs.tasks.LaserTaskEnv.step) -------------
-    def _corner_distance(self) -> np.ndarray:
-        corners = self.envs[0].corners  # (C, 2)
-        dx = corners[None, :, 0] - self.poses[:, 0, None]  # (N, C)
-        dy = corners[None, :, 1] - self.poses[:, 1, None]
-        return np.hypot(dx, dy).min(axis=1)  # (N,)
-
-    def _task_step(self, before: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-        n = self.num_envs
-        rewards, terminated = np.zeros(n), np.zeros(n, dtype=bool)
-        x, y = self.poses[:, 0], self.poses[:, 1]
-        if self.task == "corner":
-            after = self._corner_distance()
-            rewards = CORNER_PROGRESS * (before - after)
-            near = np.flatnonzero(after <= CORNER_REACH)  # cheap test first: no ray cast
-            if near.size:
-                seen = corner_in_view(self.world, self.poses[near], self.envs[0].reach_layout)
-                terminated[near[seen]] = True
-            rewards = rewards + terminated  # +1 on reaching a corner
-        elif self.task == "doorway":
-            room = self.world.room_index(x, y)  # (N,)
-            for k in np.unique(self.start_room):
-                mine = np.flatnonzero(self.start_room == k)
-                still = point_in_polygon(self.world.rooms[k].polygon, x[mine], y[mine])
-                terminated[mine] = ~still & (room[mine] >= 0)
-            rewards = terminated.astype(np.float64)
-        else:
-            i = np.clip((x / self.world.width * GRID).astype(int), 0, GRID - 1)
-            j = np.clip((y / self.world.height * GRID).astype(int), 0, GRID - 1)
-            rows = np.arange(n)
-            new = ~self.visited[rows, i, j]
-            self.visited[rows, i, j] = True
-            rewards = np.where(new, CELL_REWARD, 0.0)
-            self.done = self.visited.mean(axis=(1, 2)) >= EXPLORE_SUCCESS
-            return rewards, terminated
-        self.done = terminated.copy()
-        return rewards, terminated
 
     # --- the rest of VecEnv's interface ------------------------------------------------------
     def close(self) -> None:
