@@ -28,6 +28,7 @@ from sensorimotor.analysis.chmm import (
     log_likelihood,
 )
 from sensorimotor.analysis.clusters import assign_clusters, fit_kmeans
+from sensorimotor.analysis.context import decayed_history, slow_context
 from sensorimotor.analysis.mapping import (
     Steps,
     cell_steps,
@@ -175,6 +176,55 @@ def test_the_map_localises_the_room_where_the_cell_alone_cannot():
     assert loc["position_error"]["map"] == pytest.approx(errors["map"])
 
 
+def two_rooms_walk(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Cells 0, 1, 2 drawn independently at each step, more often 0 in the west room and 2
+    in the east one; the robot changes room about every 300 steps. One action."""
+    rng = np.random.default_rng(seed)
+    room = np.cumsum(rng.random(n) < 1 / 300) % 2
+    p = np.where(room[:, None] == 0, [0.45, 0.3, 0.25], [0.25, 0.3, 0.45])
+    cells = (rng.random(n)[:, None] > np.cumsum(p, axis=1)).sum(axis=1)
+    return cells.astype(np.int64), room
+
+
+def test_the_slow_context_follows_where_the_robot_has_been():
+    cells, room = two_rooms_walk(20_000)
+    history = decayed_history(cells, 3, tau=50)
+    assert history.sum(axis=1) == pytest.approx(1.0)
+    context = slow_context(cells, 3, 2, tau=50, seed=0)
+    agree = (context == room).mean()
+    assert max(agree, 1 - agree) > 0.85  # the two contexts are the two rooms, in some order
+    assert not slow_context(cells, 3, 1).any()
+
+
+def test_the_context_split_gives_a_one_clone_map_the_room():
+    """One clone per cell is the cells alone; split by two slow contexts, each cell gets a
+    west and an east clone, and the filter knows the room where neither cell nor Markov can."""
+    cells, room = two_rooms_walk(25_000)
+    actions = np.zeros(len(cells), dtype=np.int64)
+    poses = np.stack([3.0 + 6.0 * room, np.full(len(room), 5.0), np.zeros(len(room))], axis=1)
+    train = Steps(cells[:20_000], actions[:20_000], np.zeros((20_000, 2)), poses[:20_000])
+    test = Steps(cells[20_000:], actions[20_000:], np.zeros((5_000, 2)), poses[20_000:])
+    context = slow_context(train.cells, 3, 2, tau=50, seed=0)
+    plain = fit_chmm(train.cells, train.actions, 3, 1, 1, seed=0)
+    split = fit_chmm(train.cells, train.actions, 3, 1, 1, seed=0, context=context, n_contexts=2)
+    assert split.n_clones == 2
+    assert split.T.shape == (1, 6, 6)
+    assert split.T.sum(axis=2) == pytest.approx(1.0)
+    assert plain.T_em.shape == split.T_em.shape == (1, 3, 3)  # EM's map, before the split
+    plain_rooms = localisation(plain, train, test, ring_world())[0]["room_accuracy"]
+    rooms = localisation(split, train, test, ring_world())[0]["room_accuracy"]
+    assert plain_rooms["map"] == pytest.approx(plain_rooms["cells"])
+    assert rooms["cells"] < 0.65
+    assert rooms["map"] > 0.85
+    bits = [
+        -log_likelihood(m.T, test.cells, test.actions, m.n_clones)[1:].mean()
+        for m in (plain, split)
+    ]
+    assert bits[1] < bits[0] - 0.005  # nats: knowing the room predicts the next cell (at most 0.03)
+    with pytest.raises(ValueError, match="context"):
+        fit_chmm(train.cells, train.actions, 3, 1, 1, context=context[:-1], n_contexts=2)
+
+
 def test_communities_of_the_map_find_the_two_rooms():
     """Two cliques joined by one weak edge: two communities."""
     w = np.zeros((6, 6))
@@ -226,7 +276,8 @@ def test_cli_map_writes_strict_json_graphml_and_figures(cli, rooms1_db_path, tmp
     assert m["planning"]["pairs"] == 2
     for rate in m["planning"]["success"].values():
         assert rate in (0.0, 0.5, 1.0)
-    assert 1 <= m["states"]["active"] <= 18
+    assert m["settings"]["contexts"] == 4  # the default: each clone split by 4 contexts
+    assert 1 <= m["states"]["active"] <= 6 * 3 * 4
     import networkx as nx
 
     graph = nx.read_graphml(out / "map.graphml")
@@ -264,7 +315,9 @@ def test_map_refuses_bad_settings_and_other_layouts(rooms1_db_path, tmp_path):
     with pytest.raises(InputError, match="--clones"):
         map_files("raw", rooms1_db_path, tmp_path / "o", clones=0)
     with pytest.raises(InputError, match="states"):
-        map_files("raw", rooms1_db_path, tmp_path / "o", clusters=100, clones=30)
+        map_files("raw", rooms1_db_path, tmp_path / "o", clusters=100, clones=31, contexts=1)
+    with pytest.raises(InputError, match="--contexts"):
+        map_files("raw", rooms1_db_path, tmp_path / "o", contexts=0)
     other = tmp_path / "other.npz"
     layout = SensorLayout(angles=(-0.5, -0.25, 0.0, 0.25, 0.5))
     save_database(generate(load_world("rooms1"), 2_000, seed=0, layout=layout), other)

@@ -20,8 +20,16 @@ Training, as in the paper:
    ``em_iters``.
 2. **Viterbi training**: the single most likely state path (max-product in log space), hard
    counts along it, ``T`` from them; repeated until the path's log-probability stops improving.
-   States the path never visits are **pruned**: the pseudocount of the final ``T`` goes only to
-   the active states, so the filter never wanders into a pruned one.
+3. **The context split** (ours, not the paper's; with ``n_contexts`` > 1): EM spends the
+   clones on the last few steps, which predict the next cell best, and none on the room
+   (``docs/results/map``). Each clone of the Viterbi path is split into ``n_contexts`` clones,
+   one per slow context of the step (``context.slow_context``: where the robot has been over
+   hundreds of steps), ``T`` is counted along the split path, and Viterbi training runs again
+   (``SPLIT_VITERBI_ITERS``). The result is a cloned HMM like any other, of C x n_contexts
+   clones per cell: the context is only where its clones start, not an input of the filter.
+
+States the final path never visits are **pruned**: the pseudocount of the final ``T`` goes only
+to the active states, so the filter never wanders into a pruned one.
 
 Prediction: ``p(c_{t+1} | c_{0..t}, a_{0..t})`` is the forward scale at t + 1 (the sequence's
 first cell is given); the filtered state ``p(s_t | c_{0..t}, a_{0..t-1})`` is the forward message.
@@ -39,6 +47,7 @@ from sensorimotor.analysis.cells import check_sequence
 
 EM_ITERS = 100  # at most this many EM iterations
 VITERBI_ITERS = 20  # at most this many Viterbi-training iterations
+SPLIT_VITERBI_ITERS = 5  # at most this many after the context split (each pass costs N^2 more)
 TOL = 1e-4  # nats per step: EM stops when an iteration improves the log-likelihood by less
 PSEUDOCOUNT = 1e-3  # added to every transition count (EM) / every active target (final map)
 
@@ -176,7 +185,7 @@ class CloneHMM:
     active: np.ndarray  # (S,) bool: states the Viterbi path visits (the rest are pruned)
     counts: np.ndarray  # (A, S, S) the Viterbi path's transition counts on the training data
     history: dict  # log-likelihood per step (nats) after each EM / Viterbi iteration
-    T_em: np.ndarray  # (A, S, S) the transitions after EM, before Viterbi training
+    T_em: np.ndarray  # (A, K C', K C') after EM, before Viterbi (C' = C / contexts: unsplit)
 
     @property
     def n_cells(self) -> int:
@@ -211,6 +220,27 @@ def filtered(model: CloneHMM, cells, actions) -> np.ndarray:
     return alpha
 
 
+def _viterbi_training(T, cells, actions, C, iters, history, stage, progress, path=None):
+    """Viterbi training from ``T``: the most likely path, ``T`` from its counts, until the path's
+    log-probability stops improving or ``iters``; returns the last ``T`` and its path (``path``
+    if not even the first pass improves on -inf: iters = 0)."""
+    n = len(cells)
+    previous = -np.inf
+    history[stage] = []
+    for it in range(iters):
+        with np.errstate(divide="ignore"):
+            new_path, logp = _viterbi(np.log(T), cells, actions, C)
+        ll = logp / (n - 1)
+        if ll <= previous + 1e-12:
+            break
+        path, previous = new_path, ll
+        history[stage].append(float(ll))
+        if progress is not None:
+            progress(stage, it, ll)
+        T = _normalise(_path_counts(path, actions, T.shape), 0.0)
+    return T, path
+
+
 def fit_chmm(
     cells: np.ndarray,
     actions: np.ndarray,
@@ -222,13 +252,21 @@ def fit_chmm(
     viterbi_iters: int = VITERBI_ITERS,
     tol: float = TOL,
     pseudocount: float = PSEUDOCOUNT,
+    context: np.ndarray | None = None,
+    n_contexts: int = 1,
     progress=None,
 ) -> CloneHMM:
-    """Fit a cloned HMM to one training sequence: EM, then Viterbi training and pruning (see
-    the module docstring). ``progress(stage, iteration, loglik_per_step)`` after each iteration."""
+    """Fit a cloned HMM to one training sequence: EM, then Viterbi training, the split by
+    ``context`` ((n,) labels in [0, n_contexts), ``context.slow_context``) if more than one, and
+    pruning (see the module docstring). ``progress(stage, iteration, loglik_per_step)`` after
+    each iteration."""
     if n_clones < 1:
         raise ValueError(f"the number of clones must be at least 1, got {n_clones}")
     cells, actions = _sequence(cells, actions, n_cells, n_actions)
+    if n_contexts > 1:
+        context = np.ascontiguousarray(context, dtype=np.int64)
+        if context.shape != cells.shape or context.min() < 0 or context.max() >= n_contexts:
+            raise ValueError(f"context must be {cells.shape} labels in [0, {n_contexts})")
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     S, C, n = n_cells * n_clones, n_clones, len(cells)
     T = _normalise(rng.random((n_actions, S, S)), 0.0)
@@ -248,19 +286,16 @@ def fit_chmm(
         T = _normalise(counts, pseudocount)
     del alpha
     T_em = T
-    previous = -np.inf
-    path = None
-    for it in range(viterbi_iters):
-        with np.errstate(divide="ignore"):
-            new_path, logp = _viterbi(np.log(T), cells, actions, C)
-        ll = logp / (n - 1)
-        if ll <= previous + 1e-12:
-            break
-        path, previous = new_path, ll
-        history["viterbi"].append(float(ll))
-        if progress is not None:
-            progress("viterbi", it, ll)
-        T = _normalise(_path_counts(path, actions, T.shape), 0.0)
+    T, path = _viterbi_training(T, cells, actions, C, viterbi_iters, history, "viterbi", progress)
+    if n_contexts > 1:  # each clone becomes n_contexts clones, one per context, then Viterbi
+        split = C * n_contexts
+        path = cells * split + (path % C) * n_contexts + context
+        shape = (n_actions, n_cells * split, n_cells * split)
+        T = _normalise(_path_counts(path, actions, shape), pseudocount)
+        S, C = n_cells * split, split
+        T, path = _viterbi_training(
+            T, cells, actions, C, SPLIT_VITERBI_ITERS, history, "split", progress, path
+        )
     counts = _path_counts(path, actions, T.shape)
     active = np.zeros(S, dtype=bool)
     active[path] = True

@@ -4,10 +4,12 @@ The representation (``raw`` or a run folder's z_s, ``analyze.representation_of``
 training split becomes cells (k-means, ``clusters.fit_kmeans``; with ``fit_data`` the k-means is
 fitted on that database's training split: transfer) and the motor commands become actions
 (``cells.action_bins``). On the training split: the cell graph (``cells.cell_graph``) and the
-cloned HMM (``chmm.fit_chmm``). On the test split:
+cloned HMM (``chmm.fit_chmm``), each clone split by the slow context (``context.slow_context``,
+``contexts`` of them; 1: the plain cloned HMM). On the test split:
 
 - **bits per step** of next-cell prediction: unigram, first-order (cell, action) Markov, the
-  cell graph, the map (after Viterbi training and pruning) and the map after EM alone;
+  cell graph, the map (after Viterbi training, the split and pruning) and the map after EM
+  alone (before the split);
 - **localisation** from the filtered (causal) map state: the posterior over the map's states
   at step t, each state labelled on the training split by the posterior-weighted frequency of
   each room (or 10 x 10 grid square) and its mean position, gives the most probable room and
@@ -53,6 +55,7 @@ from sensorimotor.analysis.chmm import (
     log_likelihood,
 )
 from sensorimotor.analysis.clusters import N_CLUSTERS, assign_clusters, fit_kmeans
+from sensorimotor.analysis.context import CONTEXT_TAU, MAX_CONTEXTS, N_CONTEXTS, slow_context
 from sensorimotor.analysis.planning import GOAL_RADIUS, N_PAIRS, encoder_of, planning
 from sensorimotor.errors import InputError
 from sensorimotor.files import atomic_path, write_text_atomic
@@ -63,7 +66,7 @@ from sensorimotor.version import __version__
 N_CLONES = 20  # clones per cell (the issue's 20-cell, 20-clone map)
 MAX_CLUSTERS = 200
 MAX_CLONES = 100
-MAX_STATES = 2_000  # K C: T is (A, S, S) float64, several copies held while fitting
+MAX_STATES = 3_000  # K C N: T is (A, S, S) float64, several copies held while fitting
 GRID = 10  # the position ground truth: a GRID x GRID partition of the world
 PRIOR = 1e-3  # weight of a state's cell's labels added to the state's own (unvisited states)
 OUTPUTS = (
@@ -94,15 +97,19 @@ def _bounding_box(db, train: Steps, test: Steps) -> tuple[World, Steps, Steps]:
     return box, moved[0], moved[1]
 
 
-def check_settings(k: int, clones: int) -> None:
-    """InputError unless 2 <= K <= MAX_CLUSTERS, 1 <= C <= MAX_CLONES and K C <= MAX_STATES."""
+def check_settings(k: int, clones: int, contexts: int = N_CONTEXTS) -> None:
+    """InputError unless 2 <= K <= MAX_CLUSTERS, 1 <= C <= MAX_CLONES, 1 <= N <= MAX_CONTEXTS
+    and K C N <= MAX_STATES."""
     if not 2 <= k <= MAX_CLUSTERS:
         raise InputError(f"--clusters must lie in [2, {MAX_CLUSTERS}], got {k}")
     if not 1 <= clones <= MAX_CLONES:
         raise InputError(f"--clones must lie in [1, {MAX_CLONES}], got {clones}")
-    if k * clones > MAX_STATES:
+    if not 1 <= contexts <= MAX_CONTEXTS:
+        raise InputError(f"--contexts must lie in [1, {MAX_CONTEXTS}], got {contexts}")
+    if k * clones * contexts > MAX_STATES:
         raise InputError(
-            f"--clusters {k} x --clones {clones} = {k * clones:,} states; at most {MAX_STATES:,}"
+            f"--clusters {k} x --clones {clones} x --contexts {contexts} = "
+            f"{k * clones * contexts:,} states; at most {MAX_STATES:,}"
         )
 
 
@@ -354,7 +361,7 @@ def _versions() -> dict:
 
 def map_graphs(model: CloneHMM, graph: CellGraph, state_mean, occupancy, comm, world: World):
     """(the map, the cell graph) as networkx directed graphs: the map's active states with their
-    cell, clone, mean position, room and community, edges with their Viterbi counts per action;
+    cell, clone (after the split: clone x contexts + context), mean position, room and community, edges with their Viterbi counts per action;
     the cell graph as a multigraph, one edge per (cell, action, next cell) with its motor stats."""
     nx = _networkx()
     m = nx.DiGraph(name="map")
@@ -392,13 +399,14 @@ def map_files(
     em_iters: int = EM_ITERS,
     pairs: int = N_PAIRS,
     progress=None,
+    contexts: int = N_CONTEXTS,
 ) -> MapResult:
     """Build the map of ``run``'s representation (``"raw"`` or a run folder) of ``data`` and
     write ``map.json``, the GraphML files and the figures into ``out`` (module docstring)."""
     from sensorimotor.analysis.map_plots import plot_map_graph, plot_place_fields, plot_plans
     from sensorimotor.sim.plots import save_figure
 
-    check_settings(clusters, clones)
+    check_settings(clusters, clones, contexts)
     nx = _networkx()
     run, db, fit_db, out = load_inputs(run, data, fit_data, out, OUTPUTS)
     if pairs < 0:
@@ -410,12 +418,17 @@ def map_files(
         world, train, test = _bounding_box(db, train, test)
         pairs = 0
     graph = cell_graph(train.cells, train.actions, train.motors, clusters)
+    context = slow_context(train.cells, clusters, contexts, CONTEXT_TAU, seed)
     model = fit_chmm(
-        train.cells, train.actions, clusters, clones, N_ACTIONS, seed, em_iters, progress=progress
+        *(train.cells, train.actions, clusters, clones, N_ACTIONS, seed, em_iters),
+        context=context,
+        n_contexts=contexts,
+        progress=progress,
     )
     bits = baseline_bits(train.cells, train.actions, test.cells, test.actions, clusters)
     for name, T in (("map", model.T), ("map_em", model.T_em)):
-        bits[name] = float(-log_likelihood(T, test.cells, test.actions, clones)[1:].mean())
+        per_cell = T.shape[1] // clusters  # the clones before the split, for T_em
+        bits[name] = float(-log_likelihood(T, test.cells, test.actions, per_cell)[1:].mean())
         bits[name] /= math.log(2)
     loc, state_mean, occupancy = localisation(model, train, test, world)
     rooms, comm = rooms_from_graph(model, graph, test, world, seed)
@@ -436,6 +449,8 @@ def map_files(
         "settings": {
             "clusters": clusters,
             "clones": clones,
+            "contexts": contexts,
+            "context_tau": CONTEXT_TAU,
             "actions": list(ACTION_NAMES),
             "seed": seed,
             "em_iters": em_iters,
@@ -450,6 +465,7 @@ def map_files(
             "active": int(model.active.sum()),
             "em_iterations": len(model.history["em"]),
             "viterbi_iterations": len(model.history["viterbi"]),
+            "split_viterbi_iterations": len(model.history.get("split", [])),
             "train_nats_per_step": {
                 "em": model.history["em"][-1],
                 "viterbi": model.history["viterbi"][-1] if model.history["viterbi"] else None,
@@ -461,7 +477,7 @@ def map_files(
     }
     metrics = _strict(metrics)
     the_map, the_cells = map_graphs(model, graph, state_mean, occupancy, comm, world)
-    best = test.cells * clones + filtered(model, test.cells, test.actions).argmax(axis=1)
+    best = test.cells * model.n_clones + filtered(model, test.cells, test.actions).argmax(axis=1)
     seen = np.bincount(best, minlength=model.n_states).astype(np.float64)  # test occupancy
     box = not db.has_walls  # the frame is the path's bounding box, not walls
     place = plot_place_fields(
@@ -508,7 +524,8 @@ def summary_lines(m: dict) -> list[str]:
     ra, pe = loc["room_accuracy"], loc["position_error"]
     return [
         f"{m['model']} on {m['world']}: {m['settings']['clusters']} cells x "
-        f"{m['settings']['clones']} clones, {m['states']['active']} active states",
+        f"{m['settings']['clones']} clones x {m['settings'].get('contexts', 1)} contexts, "
+        f"{m['states']['active']} active states",
         "  bits/step: " + ", ".join(f"{k} {_fmt(v)}" for k, v in b.items()),
         f"  room accuracy: map {_fmt(ra['map'])}, cells {_fmt(ra['cells'])}, "
         f"chance {_fmt(ra['chance'])}",

@@ -66,25 +66,31 @@ def map_cmd(
     data: Annotated[Path, typer.Option(help="Database: the map is fitted on its train split.")],
     out: Annotated[Path, typer.Option(help="Output folder for map.json, GraphML, figures.")],
     clusters: Annotated[int, typer.Option(help="Cells: k of k-means (2..200).")] = 20,
-    clones: Annotated[int, typer.Option(help="Clones per cell (1..100, K C <= 2000).")] = 20,
+    clones: Annotated[int, typer.Option(help="Clones per cell (1..100, K C N <= 3000).")] = 20,
+    contexts: Annotated[
+        int, typer.Option(help="N: each clone split by the slow context (1..16; 1: plain CSCG).")
+    ] = 4,
     fit_data: Annotated[
         Path | None, typer.Option(help="Fit the cells' k-means on this database (transfer).")
     ] = None,
     seed: Annotated[int, typer.Option(min=0, max=MAX_SEED, help="Seed of k-means and EM.")] = 0,
     pairs: Annotated[int, typer.Option(help="Start/goal pairs planned in the simulator.")] = 100,
 ) -> None:
-    """Learn a map from a representation's cells: the cell graph and a cloned HMM (EM, Viterbi),
-    scored on the test split (bits/step, localisation, rooms); see analysis/mapping.py."""
+    """Learn a map from a representation's cells: the cell graph and a cloned HMM (EM, Viterbi,
+    each clone split by the slow context), scored on the test split (bits/step, localisation, rooms); see analysis/mapping.py."""
     from sensorimotor.analysis.mapping import check_settings, map_files, summary_lines
 
-    check_settings(clusters, clones)
+    check_settings(clusters, clones, contexts)
     with err_console.status(f"mapping {run} on {data}") as status:
 
         def note(stage: str, i: int, ll: float) -> None:
             status.update(f"mapping: {stage} {i}, {ll:.4f} nats/step")
 
         result = map_files(
-            run, data, out, clusters, clones, fit_data, seed, pairs=pairs, progress=note
+            *(run, data, out, clusters, clones, fit_data, seed),
+            pairs=pairs,
+            progress=note,
+            contexts=contexts,
         )
     print("\n".join(summary_lines(result.metrics)))
     err_console.print("wrote " + ", ".join(str(p) for p in result.files), soft_wrap=True)
