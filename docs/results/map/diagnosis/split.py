@@ -1,0 +1,117 @@
+"""The context split, before it was in ``chmm.fit_chmm``: the plain map's clones (C1, EM then
+Viterbi) times K2 slow contexts (k-means of the decayed history of cells, time constant TAU),
+counted along the split path, then VIT Viterbi passes (0: the counts alone). Fits on the first
+N training steps; numbers on the whole test split. Arguments: WORLD RUN N C1 K2 TAU [EM] [VIT].
+With PLAN=P in the environment, also the planner over P pairs. DATA and Z as in context.py."""
+
+import os
+import sys
+import time
+
+import numpy as np
+from scipy.signal import lfilter
+
+from sensorimotor.analysis import chmm
+from sensorimotor.analysis.cells import action_bins, baseline_bits
+from sensorimotor.analysis.clusters import assign_clusters, fit_kmeans
+from sensorimotor.analysis.mapping import Steps, localisation
+from sensorimotor.analysis.planning import encoder_of, planning
+from sensorimotor.learn.evaluate import load_run
+from sensorimotor.sim.database import load_database
+
+DATA = os.environ.get("DATA", "data")
+Z = os.environ.get("Z", "z")
+PLAN = int(os.environ.get("PLAN", "0"))
+K = 20
+world, name, n, C1, K2, tau = (
+    sys.argv[1],
+    sys.argv[2],
+    int(sys.argv[3]),
+    int(sys.argv[4]),
+    int(sys.argv[5]),
+    float(sys.argv[6]),
+)
+EM = int(sys.argv[7]) if len(sys.argv) > 7 else 100
+VIT = int(sys.argv[8]) if len(sys.argv) > 8 else 20
+SEED = int(name.rsplit("__s", 1)[1])
+db = load_database(f"{DATA}/{world}.npz")
+
+
+def z(split):
+    return np.load(f"{Z}/{name}__{split}.npy")
+
+
+km = fit_kmeans(z("train"), K, SEED)
+
+
+def steps(split, m=None):
+    part = db.take(split)
+    P = np.asarray(part.poses, dtype=np.float64)
+    M = np.asarray(part.motors, dtype=np.float64)
+    c = assign_clusters(km, z(split))
+    return Steps(c[:m], action_bins(M)[:m], M[:m], P[:m])
+
+
+def decayed(cells, tau):
+    lam = 1 - 1 / tau
+    onehot = np.eye(K)[cells]
+    return lfilter([1 - lam], [1, -lam], onehot, axis=0, zi=np.full((1, K), lam / K))[0]
+
+
+def viterbi_fit(T, cells, actions, C, iters, pc=chmm.PSEUDOCOUNT):
+    n = len(cells)
+    previous, path = -np.inf, None
+    for _ in range(iters):
+        with np.errstate(divide="ignore"):
+            new, logp = chmm._viterbi(np.log(T), cells, actions, C)
+        if logp / (n - 1) <= previous + 1e-12:
+            break
+        path, previous = new, logp / (n - 1)
+        T = chmm._normalise(chmm._path_counts(path, actions, T.shape), 0.0)
+    return path
+
+
+tr, te = steps("train", n), steps("test")
+t0 = time.time()
+m1 = chmm.fit_chmm(tr.cells, tr.actions, K, C1, 4, SEED, em_iters=EM)
+with np.errstate(divide="ignore"):
+    p1, _ = chmm._viterbi(np.log(m1.T), tr.cells, tr.actions, C1)
+t1 = time.time()
+b = baseline_bits(tr.cells, tr.actions, te.cells, te.actions, K)
+bits1 = -chmm.log_likelihood(m1.T, te.cells, te.actions, C1)[1:].mean() / np.log(2)
+h = decayed(tr.cells, tau)
+ctx = assign_clusters(fit_kmeans(h, K2, 0), h)
+C = C1 * K2
+prod = tr.cells * C + (p1 % C1) * K2 + ctx
+shape = (4, K * C, K * C)
+path = (
+    prod
+    if VIT == 0
+    else viterbi_fit(
+        chmm._normalise(chmm._path_counts(prod, tr.actions, shape), chmm.PSEUDOCOUNT),
+        tr.cells,
+        tr.actions,
+        C,
+        VIT,
+    )
+)
+counts = chmm._path_counts(path, tr.actions, shape)
+active = np.zeros(K * C, bool)
+active[path] = True
+T = chmm._normalise(counts, chmm.PSEUDOCOUNT, active)
+m = chmm.CloneHMM(T, C, active, counts, {"em": [], "viterbi": []}, T)
+bits = -chmm.log_likelihood(m.T, te.cells, te.actions, C)[1:].mean() / np.log(2)
+loc, state_mean, occupancy = localisation(m, tr, te, db.world)
+loc1, sm1, oc1 = localisation(m1, tr, te, db.world)
+plan = ""
+if PLAN:
+    enc = encoder_of(load_run(f"docs/results/runs/{name}"), db.max_range)
+    plans, _ = planning(db.world, db.layout, enc, km, m, state_mean, occupancy, SEED, PLAN)
+    plan = f"; plan map {plans['success']['map']:.2f} random {plans['success']['random']:.2f}"
+r = loc["balanced_room_accuracy"]
+r1 = loc1["balanced_room_accuracy"]
+print(
+    f"{world} {name} C1={C1} K2={K2} tau={tau} em={EM} vit={VIT}: bits markov {b['markov']:.3f} em-map {bits1:.3f} product {bits:.3f} active {active.sum()}; "
+    f"balanced product {r['map']:.3f} em-map {r1['map']:.3f} cells {r['cells']:.3f}; pos err {loc['position_error']['map']:.2f} vs {loc1['position_error']['map']:.2f}; grid {loc['grid_accuracy']['map']:.3f} {loc1['grid_accuracy']['map']:.3f}{plan} (em {t1 - t0:.0f} s, all {time.time() - t0:.0f} s)",
+    flush=True,
+)
