@@ -74,7 +74,7 @@ def map_cmd(
         Path | None, typer.Option(help="Fit the cells' k-means on this database (transfer).")
     ] = None,
     seed: Annotated[int, typer.Option(min=0, max=MAX_SEED, help="Seed of k-means and EM.")] = 0,
-    pairs: Annotated[int, typer.Option(help="Start/goal pairs planned in the simulator.")] = 100,
+    pairs: Annotated[int, typer.Option(help="Start/goal pairs planned in the simulator.")] = 300,
 ) -> None:
     """Learn a map from a representation's cells: the cell graph and a cloned HMM (EM, Viterbi,
     each clone split by the slow context), scored on the test split (bits/step, localisation, rooms); see analysis/mapping.py."""

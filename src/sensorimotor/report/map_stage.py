@@ -38,7 +38,10 @@ from sensorimotor.version import __version__
 
 MODELS = ("raw", "s", "sm", "rec-s", "rec-sm")
 LABELS = {"raw": "raw", "s": "S", "sm": "SM", "rec-s": "Rec-S", "rec-sm": "Rec-SM"}
-PAIRS = {"smoke": 10}  # planning start/goal pairs by scale; otherwise planning.N_PAIRS
+PAIRS = {
+    "smoke": 10,
+    "quick": 100,
+}  # planning start/goal pairs by scale; otherwise planning.N_PAIRS
 STAGE_VERSION = 2  # bump when the map's numbers change for the same inputs
 
 # (key in the aggregate, path in map.json, row label in the report, format)
