@@ -39,7 +39,7 @@ from sensorimotor.sim.core import (
 )
 from sensorimotor.sim.world import World
 
-N_PAIRS = 300  # start/goal pairs: 2 binomial SEs of a 5-seed mean difference (about 0.035) under the 0.05 margin
+N_PAIRS = 300  # start/goal pairs: 2 binomial SEs of a 5-seed mean lead (0.035) < its margin
 BUDGET = 400  # steps an episode may take
 GOAL_RADIUS = 4.0
 N_TRACES = 2  # episodes of the map whose trajectories are kept (the figure)
