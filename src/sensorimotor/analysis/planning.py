@@ -129,7 +129,7 @@ def run_episode(
     C = model.n_clones
     far = np.where(np.isfinite(distances), distances, np.nan)
     far = np.where(np.isnan(far), np.nanmax(far) + 10.0 if np.isfinite(far).any() else 0.0, far)
-    after = model.T[list(MOVING)] @ far if use_map else None  # (3, S) distance after a step
+    after = np.stack([model.T[a] @ far for a in MOVING]) if use_map else None  # (3, S) after a step
     x, y, heading = start
     encode = encoder() if use_map else None
     centres = kmeans.cluster_centers_  # (K, D): the nearest is the cell (KMeans.predict)
