@@ -9,11 +9,11 @@ import sys
 import time
 
 import numpy as np
-from scipy.signal import lfilter
 
-from sensorimotor.analysis import chmm
-from sensorimotor.analysis.cells import action_bins, baseline_bits
+from sensorimotor.analysis import chmm, mapping
+from sensorimotor.analysis.cells import baseline_bits
 from sensorimotor.analysis.clusters import assign_clusters, fit_kmeans
+from sensorimotor.analysis.context import decayed_history
 from sensorimotor.analysis.mapping import Steps, localisation
 from sensorimotor.analysis.planning import encoder_of, planning
 from sensorimotor.learn.evaluate import load_run
@@ -37,41 +37,13 @@ SEED = int(name.rsplit("__s", 1)[1])
 db = load_database(f"{DATA}/{world}.npz")
 
 
-def z(split):
-    return np.load(f"{Z}/{name}__{split}.npy")
+# the map's own cells and context (``mapping.cell_steps``, ``context.decayed_history``), with
+# z_s read from the cache instead of recomputed
+mapping.representation_of = lambda run, db, split="test": np.load(f"{Z}/{name}__{split}.npy")
+train, te, km = mapping.cell_steps(load_run(f"docs/results/runs/{name}"), db, K, SEED)
+tr = Steps(*(np.asarray(a)[:n] for a in (train.cells, train.actions, train.motors, train.poses)))
 
 
-km = fit_kmeans(z("train"), K, SEED)
-
-
-def steps(split, m=None):
-    part = db.take(split)
-    P = np.asarray(part.poses, dtype=np.float64)
-    M = np.asarray(part.motors, dtype=np.float64)
-    c = assign_clusters(km, z(split))
-    return Steps(c[:m], action_bins(M)[:m], M[:m], P[:m])
-
-
-def decayed(cells, tau):
-    lam = 1 - 1 / tau
-    onehot = np.eye(K)[cells]
-    return lfilter([1 - lam], [1, -lam], onehot, axis=0, zi=np.full((1, K), lam / K))[0]
-
-
-def viterbi_fit(T, cells, actions, C, iters, pc=chmm.PSEUDOCOUNT):
-    n = len(cells)
-    previous, path = -np.inf, None
-    for _ in range(iters):
-        with np.errstate(divide="ignore"):
-            new, logp = chmm._viterbi(np.log(T), cells, actions, C)
-        if logp / (n - 1) <= previous + 1e-12:
-            break
-        path, previous = new, logp / (n - 1)
-        T = chmm._normalise(chmm._path_counts(path, actions, T.shape), 0.0)
-    return path
-
-
-tr, te = steps("train", n), steps("test")
 t0 = time.time()
 m1 = chmm.fit_chmm(tr.cells, tr.actions, K, C1, 4, SEED, em_iters=EM)
 with np.errstate(divide="ignore"):
@@ -79,22 +51,13 @@ with np.errstate(divide="ignore"):
 t1 = time.time()
 b = baseline_bits(tr.cells, tr.actions, te.cells, te.actions, K)
 bits1 = -chmm.log_likelihood(m1.T, te.cells, te.actions, C1)[1:].mean() / np.log(2)
-h = decayed(tr.cells, tau)
+h = decayed_history(tr.cells, K, tau)
 ctx = assign_clusters(fit_kmeans(h, K2, 0), h)
 C = C1 * K2
 prod = tr.cells * C + (p1 % C1) * K2 + ctx
 shape = (4, K * C, K * C)
-path = (
-    prod
-    if VIT == 0
-    else viterbi_fit(
-        chmm._normalise(chmm._path_counts(prod, tr.actions, shape), chmm.PSEUDOCOUNT),
-        tr.cells,
-        tr.actions,
-        C,
-        VIT,
-    )
-)
+T0 = chmm._normalise(chmm._path_counts(prod, tr.actions, shape), chmm.PSEUDOCOUNT)
+path = chmm._viterbi_training(T0, tr.cells, tr.actions, C, VIT, {}, "split", None, prod)[1]
 counts = chmm._path_counts(path, tr.actions, shape)
 active = np.zeros(K * C, bool)
 active[path] = True
