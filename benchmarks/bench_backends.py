@@ -1,8 +1,8 @@
 """Benchmark: what Ray adds over the local worker processes on this machine, on one quick grid.
 
 The same work three ways, each from a fresh output folder: the grid's trainings as jobs of the
-local worker pool (``report.workers.run_jobs``), the same jobs as Ray tasks
-(``report.ray_backend.run_jobs``), and the same grid as a ``sweep --backend ray`` (Ray Tune,
+local worker pool (``jobs.workers.run_jobs``), the same jobs as Ray tasks
+(``jobs.ray_backend.run_jobs``), and the same grid as a ``sweep --backend ray`` (Ray Tune,
 an actor per running trial, ASHA ending some trials early: less training, more machinery).
 Before them, empty jobs measure the cost of jobs alone, and ``ray.init`` the cost of starting a
 local Ray. Every call of the local pool starts its worker processes (each imports torch); Ray's
@@ -23,9 +23,9 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
-from sensorimotor.report import ray_backend, workers
-from sensorimotor.report.sweep import _trial_job, read_sweep, run_sweep
-from sensorimotor.report.workers import Job
+from sensorimotor.jobs import ray_backend, workers
+from sensorimotor.jobs.workers import Job
+from sensorimotor.pipeline.sweep import _trial_job, read_sweep, run_sweep
 from sensorimotor.sim.database import generate, save_database
 from sensorimotor.sim.world import load_world
 

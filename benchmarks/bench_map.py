@@ -30,8 +30,8 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
-from sensorimotor.analysis.chmm import _backward_counts, _forward, fit_chmm
-from sensorimotor.analysis.context import N_CONTEXTS, slow_context
+from sensorimotor.analysis.map.chmm import _backward_counts, _forward, fit_chmm
+from sensorimotor.analysis.map.context import N_CONTEXTS, slow_context
 from sensorimotor.version import __version__
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))

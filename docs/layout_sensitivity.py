@@ -1,5 +1,5 @@
 """How much of Table I is the layout? The published Square models (docs/results/runs) tested on
-families of Rooms1 and Rooms2 layouts that fit the paper's sentences (``report.layouts``).
+families of Rooms1 and Rooms2 layouts that fit the paper's sentences (``experiments.walls``).
 
 Run by hand: ``python docs/layout_sensitivity.py [--layouts 10] [--data-seeds 2] [--steps
 100000] [--out docs/results]``; writes ``layout_sensitivity.json`` and ``.md`` into --out.
@@ -12,8 +12,8 @@ import json
 import sys
 from pathlib import Path
 
+from sensorimotor.experiments.walls import layout_sensitivity, sensitivity_markdown
 from sensorimotor.files import write_text_atomic
-from sensorimotor.report.layouts import layout_sensitivity, sensitivity_markdown
 
 ROOT = Path(__file__).resolve().parent
 

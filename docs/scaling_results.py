@@ -14,9 +14,9 @@ import sys
 from pathlib import Path
 from types import SimpleNamespace
 
+from sensorimotor.experiments.scaling import section
 from sensorimotor.files import write_text_atomic
 from sensorimotor.report.document import p, to_markdown
-from sensorimotor.report.scaling import section
 
 DEST = Path(__file__).parent / "results" / "scaling"
 

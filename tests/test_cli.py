@@ -87,7 +87,7 @@ def test_help(cli):
 
 
 def test_reproduce_help_states_what_each_scale_sets(cli):
-    from sensorimotor.report.reproduce import SCALES
+    from sensorimotor.pipeline.paper import SCALES
 
     text = " ".join(cli("reproduce", "--help").stdout.split())  # unwrapped
     text = text.replace("│ ", "").replace(" │", "")

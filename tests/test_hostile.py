@@ -306,7 +306,7 @@ def test_an_analysis_cut_short_leaves_no_metrics_of_an_earlier_one(
 
 @pytest.mark.parametrize("kind", ["sweep", "map_yaml", "map_image"])
 def test_the_newer_file_kinds_refuse_a_fifo_and_a_deep_nest_in_one_line(kind, tmp_path, cli):
-    from sensorimotor.report.sweep import read_sweep
+    from sensorimotor.pipeline.sweep import read_sweep
     from sensorimotor.sim.rosmap import read_image, read_map_yaml
 
     read = {"sweep": read_sweep, "map_yaml": read_map_yaml, "map_image": read_image}[kind]

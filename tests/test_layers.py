@@ -16,20 +16,32 @@ import sensorimotor
 PACKAGE = Path(sensorimotor.__file__).parent
 # a module's layer: the first part of its name below the package; a layer may import its own
 # and those listed for it
+BASE = {"errors", "files", "version", "stats"}
 LAYERS = {
     "errors": set(),
     "version": set(),
     "files": {"errors"},
-    "sim": {"errors", "files", "version"},
-    "learn": {"errors", "files", "version", "sim"},
-    "analysis": {"errors", "files", "version", "sim", "learn"},
-    "report": {"errors", "files", "version", "sim", "learn", "analysis", "rl"},
+    "stats": {"errors"},
+    "sim": BASE,
+    "learn": BASE | {"sim"},
+    "analysis": BASE | {"sim", "learn"},
+    "jobs": {"errors", "files", "version"},  # runs jobs; imports nothing of the science
+    "pipeline": BASE | {"sim", "learn", "analysis", "jobs"},
+    "report": BASE | {"sim", "learn", "analysis", "pipeline"},  # never an experiment
     "envs": {"errors", "sim"},
-    "rl": {"errors", "files", "version", "sim", "learn", "envs"},
-    "cli": {"errors", "files", "version", "sim", "learn", "analysis", "report", "rl"},
+    "rl": BASE | {"sim", "learn", "envs"},
+    "experiments": BASE | {"sim", "learn", "analysis", "jobs", "pipeline", "report", "rl"},
+    "reproduce": BASE | {"learn", "jobs", "pipeline", "report", "experiments"},
+    "cli": BASE
+    | {"sim", "learn", "analysis", "jobs", "pipeline", "report", "rl", "reproduce"},
     "__main__": {"cli"},
-    "__init__": {"errors", "version", "sim", "learn", "analysis", "report"},
+    "__init__": {"errors", "version", "sim", "learn", "analysis", "reproduce"},
 }
+# learn.fast: the speed of the one loop. It reads the model definition, the batching and the
+# optimiser's private kernels, and the loop reaches it through one door (``learn.engine``).
+FAST = "sensorimotor.learn.fast"
+FAST_MAY_IMPORT = {"sensorimotor.learn.models", "sensorimotor.learn.batches"}
+FAST_DOOR = {"sensorimotor.learn.engine"}
 MAX_TOP_LEVEL = 8
 MAX_LINES = 600
 
@@ -87,6 +99,25 @@ def test_every_import_points_down_the_layers():
         if layer(b) != layer(a) and layer(b) not in LAYERS[layer(a)]
     ]
     assert not wrong, wrong
+
+
+def test_fast_imports_only_the_model_the_batches_and_itself_and_is_reached_through_one_door():
+    inside = {m for m in GRAPH if m == FAST or m.startswith(FAST + ".")}
+    out_of_fast = [
+        f"{a} imports {b}"
+        for a in inside
+        for b in GRAPH[a]
+        if b not in inside and b not in FAST_MAY_IMPORT and layer(b) == "learn"
+    ]
+    assert not out_of_fast, out_of_fast
+    into_fast = [
+        f"{a} imports {b}"
+        for a, targets in GRAPH.items()
+        if a not in inside and a not in FAST_DOOR
+        for b in targets
+        if b in inside
+    ]
+    assert not into_fast, into_fast
 
 
 def test_no_import_cycle():

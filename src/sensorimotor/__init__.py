@@ -1,14 +1,19 @@
 """Representation learning by sensorimotor prediction (Kulak & Garcia Ortiz), reproduced.
 
-The package is a pipeline of four layers, each importing only those before it::
+The package is a house of rooms, each holding one trade and importing only those before it::
 
-    sim       worlds, the simulated robot, databases, events      (numpy, numba)
-    learn     the four encoders, training, run folders, evaluation (torch)
-    analysis  representations, clusters, probes, claims, Table I
-    report    the paper's figures, ``reproduce``, the report, worker processes
+    sim          worlds, the simulated robot, databases, events, figures  (numpy, numba)
+    learn        the encoders (one registry of kinds), training, run folders, evaluation (torch)
+    analysis     representations, clusters, probes, claims, Table I; ``analysis.map``: the map
+    jobs         worker processes, Ray, the stages' cache (no science)
+    pipeline     the paper's stages as jobs, the sweep
+    report       the document
+    experiments  past the paper: map, scaling, rl (one registry)
+    reproduce    the front door: the paper's stages, the chosen experiments, the report
 
-with ``envs`` (the Gymnasium environment, on ``sim``) and ``cli`` (the command line) at the
-edges. What a
+with ``stats`` (statistics over seeds, verdicts) below them all, and ``envs`` (the Gymnasium
+environment, on ``sim``), ``rl`` (agents, on ``learn`` and ``envs``) and ``cli`` (the command
+line) at the edges. What a
 notebook needs is importable from here; each name loads its layer on first use, so
 ``import sensorimotor`` stays light:
 
@@ -45,8 +50,8 @@ _API = {
     "evaluate_run": "sensorimotor.learn.evaluate",
     "representation": "sensorimotor.learn.evaluate",
     "analyze_files": "sensorimotor.analysis.analyze",
-    "map_files": "sensorimotor.analysis.mapping",
-    "reproduce": "sensorimotor.report.reproduce",
+    "map_files": "sensorimotor.analysis.map.mapping",
+    "reproduce": "sensorimotor.reproduce",
 }
 
 __all__ = ["InputError", "__version__", *_API]

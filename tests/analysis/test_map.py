@@ -12,7 +12,8 @@ import pytest
 import reference_chmm as reference
 from conftest import assert_one_line_error
 from sensorimotor.analysis.analyze import representation_of
-from sensorimotor.analysis.cells import (
+from sensorimotor.analysis.clusters import assign_clusters, fit_kmeans
+from sensorimotor.analysis.map.cells import (
     ACTION_NAMES,
     action_bins,
     baseline_bits,
@@ -20,23 +21,22 @@ from sensorimotor.analysis.cells import (
     cell_graph,
     unigram,
 )
-from sensorimotor.analysis.chmm import (
+from sensorimotor.analysis.map.chmm import (
     CloneHMM,
     _backward_counts,
     _forward,
     fit_chmm,
     log_likelihood,
 )
-from sensorimotor.analysis.clusters import assign_clusters, fit_kmeans
-from sensorimotor.analysis.context import decayed_history, slow_context
-from sensorimotor.analysis.mapping import (
+from sensorimotor.analysis.map.context import decayed_history, slow_context
+from sensorimotor.analysis.map.mapping import (
     Steps,
     cell_steps,
     communities,
     localisation,
     map_files,
 )
-from sensorimotor.analysis.planning import goal_distances
+from sensorimotor.analysis.map.planning import goal_distances
 from sensorimotor.errors import InputError
 from sensorimotor.sim.core import SensorLayout
 from sensorimotor.sim.database import generate, load_database, save_database
@@ -349,7 +349,7 @@ def test_a_map_of_a_recording_whose_walls_are_unknown_says_n_a_where_walls_are_n
 
 def test_a_world_of_unknown_walls_is_drawn_and_labelled_as_a_bounding_box():
     """A recording's frame is the box of its path, dashed and said so; a world's is its walls."""
-    from sensorimotor.analysis.map_plots import plot_map_graph, plot_place_fields
+    from sensorimotor.analysis.map.plots import plot_map_graph, plot_place_fields
     from sensorimotor.sim.world import World
 
     box = World("robot", 10.0, 8.0, np.zeros((0, 4)))

@@ -4,7 +4,7 @@ import pytest
 import torch
 from torch import nn
 
-from sensorimotor.learn.models import MODEL_KINDS, ModelConfig, build_model, count_parameters
+from sensorimotor.learn.models import KINDS, ModelConfig, build_model, count_parameters
 
 
 def linear(i: int, o: int) -> int:
@@ -28,7 +28,7 @@ EXPECTED = {
 }
 
 
-@pytest.mark.parametrize("kind", MODEL_KINDS)
+@pytest.mark.parametrize("kind", KINDS)
 def test_parameter_counts_match_design(kind):
     assert count_parameters(build_model(kind)) == EXPECTED[kind]
 
@@ -50,7 +50,7 @@ def test_layer_sizes():
     assert isinstance(sm.predictor[-1], nn.Linear)
 
 
-@pytest.mark.parametrize("kind", MODEL_KINDS)
+@pytest.mark.parametrize("kind", KINDS)
 def test_forward_shapes_and_encode(kind):
     model = build_model(kind, seed=0)
     s, m = torch.rand(3, 7, 5), torch.rand(3, 7, 2)
@@ -67,7 +67,7 @@ def test_forward_shapes_and_encode(kind):
 
 def test_motors_matter_only_for_sm_models():
     s, m = torch.rand(2, 4, 5), torch.rand(2, 4, 2)
-    for kind in MODEL_KINDS:
+    for kind in KINDS:
         model = build_model(kind, seed=1)
         a, _, _ = model(s, m)
         b, _, _ = model(s, m + 1)
@@ -80,7 +80,7 @@ def test_feedforward_steps_are_independent_recurrent_are_not():
     s = torch.rand(1, 6, 5)
     s2 = s.clone()
     s2[0, 0] += 1.0  # change only the first step
-    for kind in MODEL_KINDS:
+    for kind in KINDS:
         model = build_model(kind, seed=2)
         _, z1, _ = model(s, torch.zeros(1, 6, 2))
         _, z2, _ = model(s2, torch.zeros(1, 6, 2))

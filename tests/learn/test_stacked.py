@@ -20,7 +20,7 @@ from sensorimotor.learn.batches import epoch_generator
 from sensorimotor.learn.engine import train_epoch_feedforward
 from sensorimotor.learn.evaluate import load_run, model_error, split_tensors
 from sensorimotor.learn.fast.stacked import StackedEncoders, train_epoch_stacked
-from sensorimotor.learn.models import MODEL_KINDS, build_model
+from sensorimotor.learn.models import KINDS, build_model
 from sensorimotor.learn.runs import TrainConfig, run_name
 from sensorimotor.learn.train import train, train_runs, train_seeds
 from sensorimotor.sim.database import load_database
@@ -116,14 +116,14 @@ def relu_edited_to_tanh(monkeypatch):
 
 
 def test_the_stack_computes_what_models_py_computes():
-    assert all(stacked_engine.computes_models_py(kind) for kind in MODEL_KINDS)
+    assert all(stacked_engine.computes_models_py(kind) for kind in KINDS)
     assert train_mod.trains_stacked("sm", "cpu")
 
 
 def test_a_model_edited_in_models_py_trains_as_edited_with_autograd(
     relu_edited_to_tanh, square_db_path, tmp_path
 ):
-    assert not any(stacked_engine.computes_models_py(kind) for kind in MODEL_KINDS)
+    assert not any(stacked_engine.computes_models_py(kind) for kind in KINDS)
     assert not train_mod.trains_stacked("sm", "cpu")
     config = TrainConfig(model="sm", max_epochs=1)
     (result,) = train_seeds(square_db_path, tmp_path, config, seeds=[0])
@@ -152,7 +152,7 @@ def _state_ignored(monkeypatch):
 
 
 @pytest.mark.parametrize(
-    ("edit", "kinds"), [(_clipped_relu, MODEL_KINDS), (_state_ignored, ("rec-s", "rec-sm"))]
+    ("edit", "kinds"), [(_clipped_relu, KINDS), (_state_ignored, ("rec-s", "rec-sm"))]
 )
 def test_the_check_sees_edits_that_one_fresh_step_would_not(edit, kinds, monkeypatch):
     stacked_engine.computes_models_py.cache_clear()

@@ -4,7 +4,6 @@ the two renderings saying the same thing."""
 from __future__ import annotations
 
 import math
-from types import SimpleNamespace
 
 import pytest
 
@@ -85,7 +84,7 @@ def fake_report(
     numbers["rooms1"]["raw"] = {**per_seed, "wall_end_f1": [0.10]}
     for model, values in (square or {}).items():
         numbers["square"][model] = {**per_seed, **{k: [v] for k, v in values.items()}}
-    claims = paper_claims(SimpleNamespace(table=table, transfers=transfers), numbers)
+    claims = paper_claims(table, transfers, numbers)
     return {text.split(":")[0]: (evidence, verdict) for text, evidence, verdict in claims}
 
 

@@ -224,7 +224,7 @@ def test_the_command_line_refuses_bad_input_in_one_line(cli, tmp_path):
 def test_agents_trained_as_jobs_of_worker_processes_are_those_trained_here(tmp_path, one_thread):
     """`rl --workers 2`: each agent a job of `report`'s worker processes (as `--backend ray`
     makes each a Ray task), the same rl.json to the byte as the agents trained in this process."""
-    from sensorimotor.report.backend import job_runner, run_all
+    from sensorimotor.jobs.backend import job_runner, run_all
 
     config = tiny_config(features=("raw", "random"), transfer=())
     run_grid(config, tmp_path / "here")

@@ -164,7 +164,7 @@ def test_bad_maps_are_refused_in_one_line_naming_the_file(tmp_path, edit, needle
 
 @pytest.mark.parametrize(("world", "horizontal", "vertical"), [("rooms1", 1, 1), ("rooms2", 1, 3)])
 def test_layout_families_fit_the_papers_sentences(world, horizontal, vertical):
-    from sensorimotor.report.layouts import layout_family
+    from sensorimotor.experiments.walls import layout_family
 
     family = layout_family(world, 8, seed=1)
     assert family[0].walls.tolist() == load_world(world).walls.tolist()  # the built-in first

@@ -12,9 +12,8 @@ from matplotlib.figure import Figure
 
 from conftest import assert_one_line_error
 from sensorimotor.errors import InputError
-from sensorimotor.report import figures
 from sensorimotor.sim import core as sim
-from sensorimotor.sim import events, plots
+from sensorimotor.sim import events, figures, plots
 from sensorimotor.sim.database import generate, load_database
 from sensorimotor.sim.world import (
     BUILTIN_WORLDS,

@@ -1,4 +1,4 @@
-"""The map experiment (``report/map_stage.py``) on the shipped paper-scale runs.
+"""The map experiment (``experiments/map.py``) on the shipped paper-scale runs.
 
     PYTHONPATH=src python docs/results/map/paper_maps.py OUT DATA_DIR [--models raw,rec-sm]
         [--worlds rooms1,rooms2] [--seeds 1,3,5]
@@ -24,12 +24,12 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from sensorimotor.analysis import mapping
+from sensorimotor import experiments as ex
+from sensorimotor.analysis.map import mapping
+from sensorimotor.experiments import map as map_stage
 from sensorimotor.files import file_hash, write_text_atomic
-from sensorimotor.report import experiments as ex
-from sensorimotor.report import map_stage
+from sensorimotor.jobs.workers import run_jobs
 from sensorimotor.report.document import to_markdown
-from sensorimotor.report.workers import run_jobs
 
 RUNS = Path(__file__).resolve().parents[1] / "runs"
 

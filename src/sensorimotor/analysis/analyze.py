@@ -25,11 +25,22 @@ from sensorimotor.analysis.representation import (
 )
 from sensorimotor.errors import InputError
 from sensorimotor.files import atomic_path, check_writable, write_json_atomic
+from sensorimotor.learn.models import KINDS
 from sensorimotor.sim.core import read_sensors
 from sensorimotor.sim.database import Database, load_database
 from sensorimotor.version import __version__
 
 RAW = "raw"  # the RUN_DIR that means "the raw readings"
+
+
+def with_raw() -> tuple[str, ...]:
+    """The raw readings, then every model kind: each representation the paper compares."""
+    return (RAW, *KINDS)
+
+
+def short_name(name: str) -> str:
+    """A representation's name in tables and legends: ``raw`` or a kind's short name."""
+    return RAW if name == RAW else KINDS[name].short
 SPLIT = "test"
 
 

@@ -9,11 +9,10 @@ from __future__ import annotations
 
 import math
 
+from sensorimotor.analysis.analyze import short_name
 from sensorimotor.learn.evaluate import mean_sd
-from sensorimotor.learn.models import MODEL_KINDS, MODEL_NAMES
+from sensorimotor.learn.models import KINDS, REC_S, REC_SM, SM, S
 from sensorimotor.learn.runs import run_name
-
-SHORT = {"raw": "raw", "s": "S", "sm": "SM", "rec-s": "Rec-S", "rec-sm": "Rec-SM"}
 
 
 def _mean_sd(values: list[float]) -> tuple[float, float]:
@@ -37,7 +36,7 @@ def claim_numbers(analyses: dict[str, dict], runs: list[tuple[str, str, int]], w
     for world in worlds:
         out[world] = {}
         names = {"raw": [f"raw__{world}"]}
-        for kind in MODEL_KINDS:
+        for kind in KINDS:
             names[kind] = [run_name(w, m, s) for w, m, s in runs if w == world and m == kind]
         for kind, keys in names.items():
             vals: dict[str, list] = {
@@ -118,10 +117,14 @@ def cluster_f1(metrics: dict, cluster: int, event: str) -> float:
     return 0.0 if precision + recall == 0 else 2 * precision * recall / (precision + recall)
 
 
-def paper_claims(rep, numbers: dict) -> list[tuple[str, str, bool | None]]:
-    """Each of the paper's claims, the numbers that test it, and whether they support it."""
+def paper_claims(
+    table: dict, transfers: dict[str, dict], numbers: dict
+) -> list[tuple[str, str, bool | None]]:
+    """Each of the paper's claims, the numbers that test it, and whether they support it:
+    from Table I (``tables.table_from_results``), the transfer analyses by name and the claim
+    numbers of each training world (``claim_numbers``)."""
     claims = []
-    t = rep.table
+    t = table
     for trained_on, orders in t["paper_ordering_holds"].items():
         known = {w: v for w, v in orders.items() if v is not None}
         wording = (
@@ -137,8 +140,8 @@ def paper_claims(rep, numbers: dict) -> list[tuple[str, str, bool | None]]:
             )
         )
     rows = {r["model"]: r["cells"] for r in t["tables"].get("square", [])}
-    if all(k in rows for k in MODEL_KINDS):
-        pairs = {w: (rows["rec-s"][w], rows["s"][w]) for w in t["worlds"]}
+    if all(k in rows for k in KINDS):
+        pairs = {w: (rows[REC_S][w], rows[S][w]) for w in t["worlds"]}
         claims.append(
             (
                 "Memory lowers the error without motors too: Rec-S below S in every test world, by "
@@ -152,15 +155,15 @@ def paper_claims(rep, numbers: dict) -> list[tuple[str, str, bool | None]]:
         )
     if "square" in numbers:  # trained on Square (reproduce --worlds may leave it out)
         n = numbers["square"]
-        corner = {k: _m(n[k]["corner_f1"]) for k in ("raw", "s", "sm", "rec-s", "rec-sm")}
+        corner = {k: _m(n[k]["corner_f1"]) for k in ("raw", S, SM, REC_S, REC_SM)}
         claims.append(
             (
                 "Motors grow a corner cluster: the best cluster's corner F1 of SM and of Rec-SM exceeds "
                 "that of S and of the raw readings by at least 0.1 (Square)",
-                ", ".join(f"{SHORT[k]} {v:.2f}" for k, v in corner.items()),
+                ", ".join(f"{short_name(k)} {v:.2f}" for k, v in corner.items()),
                 _verdict(
                     list(corner.values()),
-                    min(corner["sm"], corner["rec-sm"]) >= max(corner["s"], corner["raw"]) + 0.1,
+                    min(corner[SM], corner[REC_SM]) >= max(corner[S], corner["raw"]) + 0.1,
                 ),
             )
         )
@@ -171,21 +174,21 @@ def paper_claims(rep, numbers: dict) -> list[tuple[str, str, bool | None]]:
                 f"Rec-S {corner['rec-s']:.2f}, SM {corner['sm']:.2f}, Rec-SM {corner['rec-sm']:.2f}",
                 _verdict(
                     list(corner.values()),
-                    corner["rec-s"] + 0.1 <= min(corner["sm"], corner["rec-sm"]),
+                    corner[REC_S] + 0.1 <= min(corner[SM], corner[REC_SM]),
                 ),
             )
         )
         mem = {
             k: (_m(n[k]["nothing_clusters"]), _m(n[k]["behind_r2"]))
-            for k in ("s", "sm", "rec-s", "rec-sm")
+            for k in (S, SM, REC_S, REC_SM)
         }
         flat = [v for pair in mem.values() for v in pair]
         claims.append(
             (
                 "Memory: Rec-SM splits the 'nothing in view' states (more than one such cluster; distance to "
                 "the wall behind decodable, R² at least 0.1 above S's) where S cannot (Square)",
-                ", ".join(f"{SHORT[k]}: {c:.1f} clusters, R² {r:.2f}" for k, (c, r) in mem.items()),
-                _verdict(flat, mem["rec-sm"][0] > 1 and mem["rec-sm"][1] >= mem["s"][1] + 0.1),
+                ", ".join(f"{short_name(k)}: {c:.1f} clusters, R² {r:.2f}" for k, (c, r) in mem.items()),
+                _verdict(flat, mem[REC_SM][0] > 1 and mem[REC_SM][1] >= mem[S][1] + 0.1),
             )
         )
         claims.append(
@@ -193,20 +196,20 @@ def paper_claims(rep, numbers: dict) -> list[tuple[str, str, bool | None]]:
                 "Motors sharpen memory: Rec-SM tells 'nothing in view' states apart better than Rec-S "
                 "(distance-behind R² higher, Square)",
                 f"Rec-SM {mem['rec-sm'][1]:.2f}, Rec-S {mem['rec-s'][1]:.2f}",
-                _verdict(flat, mem["rec-sm"][1] > mem["rec-s"][1]),
+                _verdict(flat, mem[REC_SM][1] > mem[REC_S][1]),
             )
         )
-        pos = {k: max(_m(n[k]["r2_x"]), _m(n[k]["r2_y"])) for k in ("s", "sm", "rec-s", "rec-sm")}
+        pos = {k: max(_m(n[k]["r2_x"]), _m(n[k]["r2_y"])) for k in (S, SM, REC_S, REC_SM)}
         claims.append(
             (
                 "No global notion of position: linear probes recover neither x nor y from any model (R² < 0.1, Square)",
-                ", ".join(f"{SHORT[k]} {v:.2f}" for k, v in pos.items()),
+                ", ".join(f"{short_name(k)} {v:.2f}" for k, v in pos.items()),
                 _verdict(list(pos.values()), max(pos.values()) < 0.1),
             )
         )
     if "rooms1" in numbers and "rooms2" in numbers:
-        e1 = _m(numbers["rooms1"]["rec-sm"]["wall_end_f1"])
-        e2 = _m(numbers["rooms2"]["rec-sm"]["wall_end_f1"])
+        e1 = _m(numbers["rooms1"][REC_SM]["wall_end_f1"])
+        e2 = _m(numbers["rooms2"][REC_SM]["wall_end_f1"])
         raw1 = _m(numbers["rooms1"]["raw"]["wall_end_f1"])
         claims.append(
             (
@@ -220,16 +223,16 @@ def paper_claims(rep, numbers: dict) -> list[tuple[str, str, bool | None]]:
         ("square", "corner", ("rooms1", "rooms2")),
         ("rooms1", "wall_end", ("rooms2",)),
     ):
-        key = run_name(source, "rec-sm", 0)
-        found = [f"{key}__to__{w}" in rep.transfers for w in targets]
+        key = run_name(source, REC_SM, 0)
+        found = [f"{key}__to__{w}" in transfers for w in targets]
         if not all(found):
             continue
-        fit = rep.transfers[f"{key}__to__{targets[0]}"]["fit_analysis"]
+        fit = transfers[f"{key}__to__{targets[0]}"]["fit_analysis"]
         cluster = fit["events"][event]["cluster"]
         fit_f1 = fit["events"][event]["f1"]
         raw_f1 = _m(numbers.get(source, {}).get("raw", {}).get(f"{event}_f1", [math.nan]))
         to = {
-            w: cluster_f1(rep.transfers[f"{key}__to__{w}"]["analysis"], cluster, event)
+            w: cluster_f1(transfers[f"{key}__to__{w}"]["analysis"], cluster, event)
             for w in targets
         }
         label = event.replace("_", " ")
@@ -249,4 +252,4 @@ def paper_claims(rep, numbers: dict) -> list[tuple[str, str, bool | None]]:
     return claims
 
 
-__all__ = ["MODEL_NAMES", "claim_numbers", "cluster_f1", "fmt_ms", "paper_claims", "run_name"]
+__all__ = ["claim_numbers", "cluster_f1", "fmt_ms", "paper_claims", "run_name"]

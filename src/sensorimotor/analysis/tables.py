@@ -4,16 +4,16 @@ from __future__ import annotations
 
 from sensorimotor.errors import InputError
 from sensorimotor.learn.evaluate import Run, baselines, evaluate_run, mean_sd
-from sensorimotor.learn.models import MODEL_KINDS, MODEL_NAMES
+from sensorimotor.learn.models import KINDS, REC_S, REC_SM, SM, S
 from sensorimotor.learn.runs import setting_changes
 from sensorimotor.sim.database import Database
 
 # The paper's Table I: models trained on Square, tested on each world (sum over sensors).
 PAPER_TABLE_I = {
-    "s": {"square": 0.03735, "rooms1": 0.04299, "rooms2": 0.07290},
-    "sm": {"square": 0.005576, "rooms1": 0.01453, "rooms2": 0.02572},
-    "rec-s": {"square": 0.03587, "rooms1": 0.04068, "rooms2": 0.06971},
-    "rec-sm": {"square": 0.002404, "rooms1": 0.01054, "rooms2": 0.01809},
+    S: {"square": 0.03735, "rooms1": 0.04299, "rooms2": 0.07290},
+    SM: {"square": 0.005576, "rooms1": 0.01453, "rooms2": 0.02572},
+    REC_S: {"square": 0.03587, "rooms1": 0.04068, "rooms2": 0.06971},
+    REC_SM: {"square": 0.002404, "rooms1": 0.01054, "rooms2": 0.01809},
 }
 
 
@@ -28,9 +28,9 @@ def fmt_cell(cell: dict | None, digits: int = 5) -> str:
 
 def paper_ordering_holds(cells: dict[str, float]) -> bool | None:
     """The paper's claim in one column: Rec-SM < SM < both Rec-S and S (None if a cell is missing)."""
-    if any(k not in cells for k in MODEL_KINDS):
+    if any(k not in cells for k in KINDS):
         return None
-    return cells["rec-sm"] < cells["sm"] < min(cells["rec-s"], cells["s"])
+    return cells[REC_SM] < cells[SM] < min(cells[REC_S], cells[S])
 
 
 # settings that do not make another experiment: the seed makes a row's spread, the others
@@ -82,7 +82,7 @@ def table_from_results(per_run: list[dict], base: dict, worlds: list[str]) -> di
     ordering: dict[str, dict[str, bool | None]] = {}
     for trained_on in dict.fromkeys(r["trained_on"] for r in per_run):
         rows = []
-        for kind in MODEL_KINDS:
+        for kind in KINDS:
             mine = [r for r in per_run if r["trained_on"] == trained_on and r["model"] == kind]
             if not mine:
                 continue
@@ -97,7 +97,7 @@ def table_from_results(per_run: list[dict], base: dict, worlds: list[str]) -> di
                     "values": values,
                     "seeds": [r["seed"] for r in mine],
                 }
-            rows.append({"model": kind, "name": MODEL_NAMES[kind], "cells": cells})
+            rows.append({"model": kind, "name": KINDS[kind].label, "cells": cells})
         tables[trained_on] = rows
         ordering[trained_on] = {
             w: paper_ordering_holds({row["model"]: row["cells"][w]["mean"] for row in rows})

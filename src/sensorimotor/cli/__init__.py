@@ -10,7 +10,7 @@ import sys
 
 import typer
 
-from sensorimotor.cli import analysis, data, learn, report, rl, world  # noqa: F401  (registers them)
+from sensorimotor.cli import analysis, data, learn, reproduce, rl, world  # noqa: F401  (registers them)
 from sensorimotor.cli.app import INTERRUPTED, app
 from sensorimotor.errors import InputError
 

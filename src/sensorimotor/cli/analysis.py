@@ -78,7 +78,7 @@ def map_cmd(
 ) -> None:
     """Learn a map from a representation's cells: the cell graph and a cloned HMM (EM, Viterbi,
     each clone split by the slow context), scored on the test split (bits/step, localisation, rooms); see analysis/mapping.py."""
-    from sensorimotor.analysis.mapping import check_settings, map_files, summary_lines
+    from sensorimotor.analysis.map.mapping import check_settings, map_files, summary_lines
 
     check_settings(clusters, clones, contexts)
     with err_console.status(f"mapping {run} on {data}") as status:

@@ -54,10 +54,10 @@ ModelArg = Annotated[str, typer.Argument(help="Model: s, sm, rec-s or rec-sm.")]
 
 
 def _check_model(model: str) -> str:
-    from sensorimotor.learn.models import MODEL_KINDS
+    from sensorimotor.learn.models import KINDS
 
-    if model not in MODEL_KINDS:
-        raise InputError(f"unknown model {model!r}: use one of {', '.join(MODEL_KINDS)}")
+    if model not in KINDS:
+        raise InputError(f"unknown model {model!r}: use one of {', '.join(KINDS)}")
     return model
 
 

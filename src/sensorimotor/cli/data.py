@@ -148,7 +148,7 @@ def plot_world_cmd(
     svg: PlotSvg = False,
 ) -> None:
     """Fig. 1: the walls of each WORLD, side by side."""
-    from sensorimotor.report.figures import worlds_figure
+    from sensorimotor.sim.figures import worlds_figure
     from sensorimotor.sim.world import load_world
 
     _check_png(out)
@@ -165,8 +165,8 @@ def plot_trajectory_cmd(
     svg: PlotSvg = False,
 ) -> None:
     """Fig. 2: the agent's path over the first STEPS rows of each database, in its world."""
-    from sensorimotor.report.figures import trajectories_figure
     from sensorimotor.sim.database import load_database
+    from sensorimotor.sim.figures import trajectories_figure
 
     if steps < 1:
         raise InputError(f"--steps must be at least 1, got {steps}")
@@ -192,8 +192,8 @@ def plot_perception_cmd(
     The situations (nothing, line, corner, wall at its left, wall end) are found in the
     database by pose and readings; a wall end needs a world with inner walls (rooms1).
     """
-    from sensorimotor.report.figures import perception_figure, pick_situations
     from sensorimotor.sim.database import load_database
+    from sensorimotor.sim.figures import perception_figure, pick_situations
 
     if not (view >= 0 and math.isfinite(view)):
         raise InputError(f"--view must be a non-negative number, got {view}")

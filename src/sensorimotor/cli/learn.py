@@ -15,6 +15,7 @@ from sensorimotor.cli.app import (
     err_console,
 )
 from sensorimotor.errors import InputError
+from sensorimotor.learn.models import S
 from sensorimotor.sim import MAX_SEED
 
 SET_HELP = (
@@ -124,7 +125,7 @@ def epoch_line(r, stopper, seed: int | None = None, max_minutes: float | None = 
 def _train(model, data: Path, out: Path, config, seeds: list[int], note, resume, single, sizes):
     """`train`: one run folder (OUT itself with --seed; one per seed under OUT with --seeds),
     a line per seed and epoch, a line per finished run."""
-    from sensorimotor.learn.models import MODEL_NAMES
+    from sensorimotor.learn.models import KINDS
     from sensorimotor.learn.train import train, train_seeds
 
     started: list[bool] = []
@@ -133,7 +134,7 @@ def _train(model, data: Path, out: Path, config, seeds: list[int], note, resume,
         if not started:  # the header waits for the first epoch: input errors stay one line
             started.append(True)
             how = _engine_note(model, config.device, single)
-            err_console.print(f"training {MODEL_NAMES[model]} on {data} ({note}{how}) -> {out}")
+            err_console.print(f"training {KINDS[model].label} on {data} ({note}{how}) -> {out}")
         err_console.print(epoch_line(r, stopper, None if single else seed, config.max_minutes))
 
     if single:
@@ -164,7 +165,7 @@ def evaluate(
 
     from sensorimotor.files import check_writable, write_json_atomic
     from sensorimotor.learn.evaluate import evaluate_run, load_run
-    from sensorimotor.learn.models import MODEL_NAMES
+    from sensorimotor.learn.models import KINDS
     from sensorimotor.sim.database import load_database
 
     if json_out is not None:
@@ -173,7 +174,7 @@ def evaluate(
     dbs = [load_database(p) for p in data]
     res = evaluate_run(run, dbs)
     table = Table(
-        title=f"{MODEL_NAMES[run.kind]} trained on {run.trained_on}: test error (sum over sensors)"
+        title=f"{KINDS[run.kind].label} trained on {run.trained_on}: test error (sum over sensors)"
     )
     for col in ("test world", "model", "mean baseline", "copy-last baseline"):
         table.add_column(col, justify="right")
@@ -211,7 +212,7 @@ def table(
     for trained_on, rows in result["tables"].items():
         # the paper's number beside a cell only where the paper has one: Square-trained models
         # tested on one of its worlds
-        paper = {w: trained_on == "square" and w in PAPER_TABLE_I["s"] for w in worlds}
+        paper = {w: trained_on == "square" and w in PAPER_TABLE_I[S] for w in worlds}
         t = Table(title=f"Table I: test error, trained on {trained_on} (mean ± sd over seeds)")
         t.add_column("model")
         for w in worlds:

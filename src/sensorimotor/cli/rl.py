@@ -8,8 +8,8 @@ from typing import Annotated
 import typer
 
 from sensorimotor.cli.app import app, err_console, progress_bar
-from sensorimotor.cli.report import AddressOpt, BackendOpt
-from sensorimotor.report.backend import check_backend, job_runner, run_all
+from sensorimotor.cli.reproduce import AddressOpt, BackendOpt
+from sensorimotor.jobs.backend import check_backend, job_runner, run_all
 
 
 @app.command()

@@ -25,13 +25,60 @@ from dataclasses import asdict, dataclass
 import torch
 from torch import nn
 
-MODEL_KINDS = ("s", "sm", "rec-s", "rec-sm")
-MODEL_NAMES = {
-    "s": "S-encoder",
-    "sm": "SM-encoder",
-    "rec-s": "Recurrent-S-encoder",
-    "rec-sm": "Recurrent-SM-encoder",
-}
+
+@dataclass(frozen=True)
+class Kind:
+    """One encoder family: its traits decide its layers (``SensorimotorEncoder``), and every
+    list of models in the package is read from ``KINDS``."""
+
+    name: str
+    """In commands and run-folder names (``square__rec-sm__s0``)."""
+    label: str
+    """The paper's name, in titles."""
+    short: str
+    """In tables and figure legends."""
+    recurrent: bool
+    """An LSTM memory between the sensor encoder and z_s."""
+    motors: bool
+    """The predictor reads the encoded motor command z_m."""
+    motor_memory: bool = False
+    """The memory reads the motor commands too (not yet built: ``SensorimotorEncoder`` refuses)."""
+    cost: float = 100.0
+    """Core-seconds one seed took in the paper grid on a 2-core CPU: longest jobs start first."""
+    quick_epochs: int | None = None
+    """Epoch cap at ``reproduce --scale quick`` (None: early stopping alone)."""
+
+    def __post_init__(self) -> None:
+        if self.motor_memory and not self.recurrent:
+            raise ValueError(f"{self.name}: a memory that reads motors needs a memory")
+
+
+KINDS: dict[str, Kind] = {}
+"""Every model kind by name, in the order of the paper's Table I. Add one with ``register``."""
+
+
+def register(kind: Kind) -> Kind:
+    """Add ``kind`` to ``KINDS``: from here on it is trained, tabulated, analysed and reported
+    wherever the package lists models."""
+    if kind.name in KINDS or kind.name == "raw":
+        raise ValueError(f"model kind {kind.name!r} is already taken")
+    KINDS[kind.name] = kind
+    return kind
+
+
+S = register(Kind("s", "S-encoder", "S", False, False, cost=20, quick_epochs=10)).name
+SM = register(Kind("sm", "SM-encoder", "SM", False, True, cost=44, quick_epochs=10)).name
+REC_S = register(Kind("rec-s", "Recurrent-S-encoder", "Rec-S", True, False, cost=77, quick_epochs=30)).name
+REC_SM = register(
+    Kind("rec-sm", "Recurrent-SM-encoder", "Rec-SM", True, True, cost=230, quick_epochs=80)
+).name
+
+
+def paper_panels() -> list[str]:
+    """The kinds in the order of the paper's Fig. 4 panels: without motors first, then with;
+    memoryless before recurrent."""
+    return sorted(KINDS, key=lambda k: (KINDS[k].motors, KINDS[k].recurrent))
+
 
 State = tuple[torch.Tensor, torch.Tensor] | None  # LSTM (h, c), each (layers, B, 32); None = zero
 
@@ -43,8 +90,8 @@ MAX_WIDTH = 4096  # units of any one layer: far beyond these models, within any 
 class ModelConfig:
     """Sizes of one encoder; the defaults are the paper's."""
 
-    kind: str = "rec-sm"
-    """One of s, sm, rec-s, rec-sm."""
+    kind: str = REC_SM
+    """A name in ``KINDS``."""
     n_sensors: int = 5
     """Distance sensors in s_t."""
     n_motors: int = 2
@@ -67,8 +114,8 @@ class ModelConfig:
     def __post_init__(self) -> None:
         """Refuse an unknown kind, and sizes that are not integers in 1..MAX_WIDTH (a
         hand-edited config.json would otherwise fail deep inside torch, or exhaust memory)."""
-        if self.kind not in MODEL_KINDS:
-            raise ValueError(f"unknown model {self.kind!r}: use one of {', '.join(MODEL_KINDS)}")
+        if self.kind not in KINDS:
+            raise ValueError(f"unknown model {self.kind!r}: use one of {', '.join(KINDS)}")
         object.__setattr__(self, "ff_hidden", tuple(self.ff_hidden))
         sizes = {k: v for k, v in asdict(self).items() if k not in ("kind", "ff_hidden")}
         sizes |= {f"ff_hidden[{i}]": v for i, v in enumerate(self.ff_hidden)}
@@ -80,11 +127,11 @@ class ModelConfig:
 
     @property
     def recurrent(self) -> bool:
-        return self.kind.startswith("rec")
+        return KINDS[self.kind].recurrent
 
     @property
     def uses_motors(self) -> bool:
-        return self.kind.endswith("sm")
+        return KINDS[self.kind].motors
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -109,6 +156,8 @@ class SensorimotorEncoder(nn.Module):
         super().__init__()
         c = config
         self.config = c
+        if KINDS[c.kind].motor_memory:
+            raise NotImplementedError(f"{c.kind}: a memory that reads motors is not built yet")
         if c.recurrent:
             self.sensor_in = nn.Sequential(nn.Linear(c.n_sensors, c.rec_hidden), nn.ReLU())
             self.lstm = nn.LSTM(c.rec_hidden, c.lstm_size, c.lstm_layers, batch_first=True)
@@ -146,7 +195,7 @@ class SensorimotorEncoder(nn.Module):
         z = z_s
         if self.config.uses_motors:
             if motors is None:
-                raise ValueError(f"{MODEL_NAMES[self.config.kind]} needs motor commands")
+                raise ValueError(f"{KINDS[self.config.kind].label} needs motor commands")
             z_m = self.motor_encoder(motors)  # (B, T, 5)
             z = torch.cat([z_s, z_m], dim=-1)  # (B, T, 15)
         return self.predictor(z), z_s, state  # (B, T, 5), (B, T, 10)

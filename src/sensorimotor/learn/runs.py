@@ -35,7 +35,7 @@ from sensorimotor.files import (
     write_json_atomic,
 )
 from sensorimotor.files import write_text_atomic as _write_text
-from sensorimotor.learn.models import MODEL_KINDS, ModelConfig
+from sensorimotor.learn.models import KINDS, REC_SM, ModelConfig
 from sensorimotor.sim import MAX_SEED
 from sensorimotor.sim.database import Database
 from sensorimotor.version import __version__
@@ -57,7 +57,7 @@ def check_device(device: str) -> None:
 class TrainConfig:
     """How one model is trained; the defaults are the paper's (section V.A)."""
 
-    model: str = "rec-sm"
+    model: str = REC_SM
     """s, sm, rec-s or rec-sm."""
     seed: int = 0
     """Seeds the initial weights and the data order."""
@@ -83,8 +83,8 @@ class TrainConfig:
     def __post_init__(self) -> None:
         """Refuse a setting that could not train, before any run folder is written; numpy
         numbers become Python's (config.json is JSON)."""
-        if self.model not in MODEL_KINDS:
-            kinds = ", ".join(MODEL_KINDS)
+        if self.model not in KINDS:
+            kinds = ", ".join(KINDS)
             raise InputError(f"TrainConfig.model: use one of {kinds}, got {self.model!r}")
         check_device(self.device)
         counts = {"seed": 0, "batch_size": 1, "horizon": 1, "patience": 1, "threads": 1}

@@ -1,2 +1,3 @@
-"""The paper's figures of the simulator (``figures``), the whole reproduction (``reproduce``),
-its report (``document``) and the worker processes that run its jobs (``workers``)."""
+"""The report: ``document`` writes ``report.md`` and a self-contained ``report.html`` from what
+the paper's stages found (Table I, figures, the paper's claims with their verdicts) and the
+sections the experiments hand it. It never imports an experiment."""

@@ -14,13 +14,16 @@ from pathlib import Path
 
 import numpy as np
 
+from sensorimotor.analysis.analyze import RAW, with_raw
 from sensorimotor.analysis.claims import claim_numbers, cluster_f1, fmt_ms, paper_claims
 from sensorimotor.analysis.tables import PAPER_TABLE_I, fmt_cell
 from sensorimotor.files import read_json, write_json_atomic, write_text_atomic
-from sensorimotor.learn.models import MODEL_KINDS, MODEL_NAMES
+from sensorimotor.learn.models import KINDS, REC_SM, paper_panels
 
-PCA_ORDER = ("raw", "s", "rec-s", "sm", "rec-sm")  # the panels of paper Fig. 4, left to right
-LABEL = {"raw": "Sensory (raw readings)", **MODEL_NAMES}
+
+def label(name: str) -> str:
+    """A representation's name in titles: the raw readings or a kind's label."""
+    return "Sensory (raw readings)" if name == RAW else KINDS[name].label
 
 
 @dataclass(frozen=True)
@@ -139,8 +142,8 @@ def paper_agreement(rows: list[dict], worlds: list[str], tolerance: float = 0.25
 
 def _figures(rep) -> dict[str, Path]:
     from sensorimotor.analysis.plots import plot_pca
-    from sensorimotor.report.figures import perception_figure, trajectories_figure, worlds_figure
     from sensorimotor.sim.database import load_database
+    from sensorimotor.sim.figures import perception_figure, trajectories_figure, worlds_figure
     from sensorimotor.sim.plots import save_figure
 
     figs: dict[str, Path] = {}
@@ -159,14 +162,14 @@ def _figures(rep) -> dict[str, Path]:
 
     for world in rep.worlds:
         panels = [("raw", rep.out / "analysis" / f"raw__{world}")] + [
-            (k, rep.out / "analysis" / f"{world}__{k}__s0") for k in PCA_ORDER[1:]
+            (k, rep.out / "analysis" / f"{world}__{k}__s0") for k in paper_panels()
         ]
         fig = Figure(figsize=(3.2 * len(panels), 3.2), layout="constrained")
         axes = fig.subplots(1, len(panels))
         for ax, (kind, folder_k) in zip(axes, panels, strict=True):
             with np.load(folder_k / "pca.npz", allow_pickle=False) as z:
                 plot_pca(
-                    z["pc"], z["min_reading"], ax=ax, title=LABEL[kind], colorbar=ax is axes[-1]
+                    z["pc"], z["min_reading"], ax=ax, title=label(kind), colorbar=ax is axes[-1]
                 )
         figs[f"pca_{world}"] = save_figure(fig, folder / f"pca_{world}.png")[0]
     return figs
@@ -348,11 +351,11 @@ def _inside(rep, figs: dict[str, Path], numbers: dict, worlds: list[str]) -> lis
     )
     for world in worlds:
         body = []
-        for kind in ("raw", *MODEL_KINDS):
+        for kind in with_raw():
             v = numbers[world][kind]
             body.append(
                 [
-                    LABEL[kind],
+                    label(kind),
                     fmt_ms(v["corner_f1"]),
                     fmt_ms(v["wall_end_f1"]),
                     fmt_ms(v["nothing_clusters"], 1),
@@ -399,20 +402,12 @@ def _maps(rep) -> list[Block]:
     """The cluster maps of seed 0, and the transfer of clusters between worlds."""
     b: list[Block] = []
     b.append(h(3, "Cluster maps (seed 0): 500 steps of each cluster, arrows at true pose"))
-    shown = [
-        ("raw", "square"),
-        ("s", "square"),
-        ("sm", "square"),
-        ("rec-s", "square"),
-        ("rec-sm", "square"),
-        ("rec-sm", "rooms1"),
-        ("rec-sm", "rooms2"),
-    ]
+    shown = [(kind, "square") for kind in with_raw()] + [(REC_SM, "rooms1"), (REC_SM, "rooms2")]
     for kind, world in shown:
-        name = f"raw__{world}" if kind == "raw" else f"{world}__{kind}__s0"
+        name = f"raw__{world}" if kind == RAW else f"{world}__{kind}__s0"
         path = rep.out / "analysis" / name / "clusters.png"
         if path.exists():
-            b.append(image(path, f"{LABEL[kind]} trained on {world}: the 20 clusters"))
+            b.append(image(path, f"{label(kind)} trained on {world}: the 20 clusters"))
 
     b.append(h(3, "Transfer: Rec-SM and its clusters fitted on one world, applied to another"))
     b.append(
@@ -452,7 +447,7 @@ def _claims(rep, numbers: dict) -> tuple[list[Block], list]:
     b.append(h(2, "The paper's claims, tested"))
     rows_c = [
         [c, nums, "supported" if ok else ("not supported" if ok is not None else "n/a")]
-        for c, nums, ok in paper_claims(rep, numbers)
+        for c, nums, ok in paper_claims(rep.table, rep.transfers, numbers)
     ]
     b.append(table(["claim", "numbers", "verdict"], rows_c))
     return b, rows_c

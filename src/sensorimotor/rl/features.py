@@ -31,12 +31,12 @@ from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
 from sensorimotor.errors import InputError
 from sensorimotor.learn.evaluate import load_run
-from sensorimotor.learn.models import MODEL_KINDS, SensorimotorEncoder, build_model
+from sensorimotor.learn.models import KINDS, REC_S, REC_SM, SM, S, SensorimotorEncoder, build_model
 from sensorimotor.sim.core import DEFAULT_LAYOUT, MAX_RANGE
 from sensorimotor.sim.database import scale_sensors
 
-FEATURES = ("pose", "raw", "s", "sm", "rec-s", "rec-sm", "random")
-RANDOM_KIND = "rec-sm"  # the untrained encoder's architecture
+FEATURES = ("pose", "raw", S, SM, REC_S, REC_SM, "random")
+RANDOM_KIND = REC_SM  # the untrained encoder's architecture
 SIZES = {"pose": 4, "raw": 5}  # the encoders give z_s: ModelConfig.z_sensors
 
 
@@ -71,7 +71,7 @@ def load_encoder(
         return None, None
     if features == "random":
         return _frozen(build_model(RANDOM_KIND, seed=seed)), None
-    if features not in MODEL_KINDS:
+    if features not in KINDS:
         raise InputError(f"unknown features {features!r}: use one of {', '.join(FEATURES)}")
     folder = run_folder(runs, trained_on, features, seed)
     run = load_run(folder)

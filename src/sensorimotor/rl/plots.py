@@ -7,15 +7,16 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from sensorimotor.learn.models import REC_S, REC_SM, SM, S
 from sensorimotor.sim.plots import save_figure
 
 COLORS = {
     "pose": "black",
     "raw": "tab:gray",
-    "s": "tab:blue",
-    "sm": "tab:orange",
-    "rec-s": "tab:green",
-    "rec-sm": "tab:red",
+    S: "tab:blue",
+    SM: "tab:orange",
+    REC_S: "tab:green",
+    REC_SM: "tab:red",
     "random": "tab:purple",
 }
 

@@ -32,6 +32,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv
 from sensorimotor.envs import TASK_IDS, LaserTaskEnv
 from sensorimotor.errors import InputError
 from sensorimotor.files import atomic_path, read_json, write_text_atomic
+from sensorimotor.learn.models import REC_SM
 from sensorimotor.rl.features import FEATURES, FeatureVecEnv, load_encoder
 from sensorimotor.rl.results import HEADLINE, summary, verdicts
 from sensorimotor.rl.vec_env import TaskVecEnv
@@ -50,7 +51,7 @@ class RLConfig:
     """corner, doorway or explore (``envs.tasks``)."""
     world: str = "rooms1"
     """The world the agents learn in."""
-    features: tuple[str, ...] = ("pose", "raw", "rec-sm", "random")
+    features: tuple[str, ...] = ("pose", "raw", REC_SM, "random")
     """Feature sets, each learned by its own agents (``features.FEATURES``)."""
     seeds: int = 3
     """Agents per feature set: seeds 0 .. seeds - 1 (and encoder seeds)."""

@@ -2,7 +2,7 @@
 
 Every ``plot_*`` function takes the data and an optional ``ax``; it makes a Figure (a bare
 ``matplotlib.figure.Figure``, no pyplot, no backend) only when no Axes is given, and never
-saves; ``save_figure`` writes a Figure to disk atomically. ``report.figures`` assembles the
+saves; ``save_figure`` writes a Figure to disk atomically. ``sim.figures`` assembles the
 paper's multi-panel figures from these; the Gymnasium environment renders with them.
 
 Simulator figures (paper section IV):

@@ -11,10 +11,10 @@ import time
 
 import numpy as np
 
-from sensorimotor.analysis import mapping
-from sensorimotor.analysis.chmm import fit_chmm, log_likelihood
-from sensorimotor.analysis.context import CONTEXT_TAU, N_CONTEXTS, slow_context
-from sensorimotor.analysis.planning import encoder_of, planning
+from sensorimotor.analysis.map import mapping
+from sensorimotor.analysis.map.chmm import fit_chmm, log_likelihood
+from sensorimotor.analysis.map.context import CONTEXT_TAU, N_CONTEXTS, slow_context
+from sensorimotor.analysis.map.planning import encoder_of, planning
 from sensorimotor.learn.evaluate import load_run
 from sensorimotor.sim.database import load_database
 

@@ -11,12 +11,12 @@ import time
 
 import numpy as np
 
-from sensorimotor.analysis import chmm
 from sensorimotor.analysis.analyze import representation_of
-from sensorimotor.analysis.cells import action_bins
 from sensorimotor.analysis.clusters import assign_clusters, fit_kmeans
-from sensorimotor.analysis.mapping import Steps, localisation
-from sensorimotor.analysis.planning import encoder_of, planning
+from sensorimotor.analysis.map import chmm
+from sensorimotor.analysis.map.cells import action_bins
+from sensorimotor.analysis.map.mapping import Steps, localisation
+from sensorimotor.analysis.map.planning import encoder_of, planning
 from sensorimotor.learn.evaluate import load_run
 from sensorimotor.sim.database import load_database
 

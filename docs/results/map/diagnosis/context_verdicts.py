@@ -1,4 +1,4 @@
-"""The three claims of the map stage (``report.map_stage.verdict``, its margins) for the slow-context
+"""The three claims of the map stage (``experiments.map.verdict``, its margins) for the slow-context
 map over the seeds in ``context_plan.log`` (tau 400, 20 clones, no EM), against the Markov numbers
 and the shipped EM map's of ``docs/results/map/map.json``. Run from the project root."""
 
@@ -6,7 +6,7 @@ import json
 import re
 from pathlib import Path
 
-from sensorimotor.report.map_stage import MARGINS, verdict
+from sensorimotor.experiments.map import MARGINS, verdict
 
 HERE = Path(__file__).parent
 LINE = re.compile(

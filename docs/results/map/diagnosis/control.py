@@ -8,7 +8,7 @@ import sys
 
 import numpy as np
 
-from sensorimotor.analysis.planning import BUDGET, GOAL_RADIUS, _command
+from sensorimotor.analysis.map.planning import BUDGET, GOAL_RADIUS, _command
 from sensorimotor.sim.core import TURN_THRESHOLD, apply_motor, behaviour, read_sensors, sample_start
 from sensorimotor.sim.database import load_database
 

@@ -6,8 +6,8 @@ import sys
 import numpy as np
 
 from sensorimotor.analysis.analyze import representation_of
-from sensorimotor.analysis.cells import action_bins
 from sensorimotor.analysis.clusters import assign_clusters, fit_kmeans
+from sensorimotor.analysis.map.cells import action_bins
 from sensorimotor.sim.database import load_database
 
 # DATA: the folder of {world}.npz (sensorimotor generate WORLD --steps 1000000 --seed 0);

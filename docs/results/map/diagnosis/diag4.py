@@ -10,10 +10,10 @@ import numpy as np
 from sklearn.linear_model import LogisticRegression
 
 from sensorimotor.analysis.analyze import representation_of
-from sensorimotor.analysis.cells import action_bins
-from sensorimotor.analysis.chmm import filtered, fit_chmm
 from sensorimotor.analysis.clusters import assign_clusters, fit_kmeans
-from sensorimotor.analysis.mapping import balanced_accuracy
+from sensorimotor.analysis.map.cells import action_bins
+from sensorimotor.analysis.map.chmm import filtered, fit_chmm
+from sensorimotor.analysis.map.mapping import balanced_accuracy
 from sensorimotor.sim.database import load_database
 
 # DATA: the folder of {world}.npz (sensorimotor generate WORLD --steps 1000000 --seed 0);

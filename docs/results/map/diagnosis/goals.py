@@ -6,10 +6,10 @@ import time
 
 import numpy as np
 
-import sensorimotor.analysis.planning as pl
-from sensorimotor.analysis import mapping
-from sensorimotor.analysis.chmm import filtered, fit_chmm
-from sensorimotor.analysis.context import CONTEXT_TAU, N_CONTEXTS, slow_context
+import sensorimotor.analysis.map.planning as pl
+from sensorimotor.analysis.map import mapping
+from sensorimotor.analysis.map.chmm import filtered, fit_chmm
+from sensorimotor.analysis.map.context import CONTEXT_TAU, N_CONTEXTS, slow_context
 from sensorimotor.learn.evaluate import load_run
 from sensorimotor.sim.database import load_database
 

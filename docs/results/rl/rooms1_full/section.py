@@ -5,7 +5,7 @@ import sys
 from pathlib import Path
 from types import SimpleNamespace
 
-from sensorimotor.report import rl_stage
+from sensorimotor.experiments import rl as rl_stage
 from sensorimotor.report.document import to_markdown
 
 out = Path(sys.argv[1])

@@ -18,8 +18,8 @@ import matplotlib.image as mpimg
 import pytest
 
 from sensorimotor.errors import InputError
-from sensorimotor.report import ray_backend, workers
-from sensorimotor.report.workers import Job, report
+from sensorimotor.jobs import ray_backend, workers
+from sensorimotor.jobs.workers import Job, send_progress
 
 ray = pytest.importorskip("ray")
 
@@ -37,10 +37,10 @@ def cluster() -> str:
 
 
 def _square(name: str, x: int) -> int:
-    report(name, f"squaring {x}")
+    send_progress(name, f"squaring {x}")
     if x < 0:
         raise InputError(f"cannot square {x} here")
-    report(name, "done")
+    send_progress(name, "done")
     return x * x
 
 
@@ -66,7 +66,7 @@ def test_jobs_on_ray_give_what_local_jobs_give(cluster):
 
 
 def _sleep_then_write(path: str) -> None:
-    report(path, "started")
+    send_progress(path, "started")
     time.sleep(5)  # long enough for a cancel to land on a loaded machine
     Path(path).write_text("finished")
 
@@ -93,7 +93,7 @@ def _table(out: Path) -> dict:
 
 @pytest.mark.slow  # two smoke reproductions of Square, one on Ray
 def test_reproduce_on_ray_writes_the_local_table(cluster, tmp_path):
-    from sensorimotor.report.reproduce import reproduce
+    from sensorimotor.reproduce import reproduce
 
     lines: list[str] = []
     kwargs = {"scale": "smoke", "worlds": ["square"]}
@@ -156,7 +156,7 @@ def test_a_sweep_on_ray_killed_and_resumed(cluster, tmp_path):
 def test_rl_agents_as_ray_tasks_are_those_trained_here(cluster, tmp_path, one_thread):
     """`rl --backend ray`: every agent a Ray task, the same rl.json to the byte."""
     pytest.importorskip("stable_baselines3")
-    from sensorimotor.report.backend import run_all
+    from sensorimotor.jobs.backend import run_all
     from sensorimotor.rl.runner import RLConfig, run_grid
 
     runs = Path(__file__).parents[2] / "docs" / "results" / "runs"

@@ -7,7 +7,7 @@ import operator
 
 import pytest
 
-from sensorimotor.report.workers import Job, run_jobs
+from sensorimotor.jobs.workers import Job, run_jobs
 
 
 @pytest.mark.parametrize("workers", [1, 2])
@@ -23,12 +23,12 @@ def test_results_by_name_and_failures_kept_apart(workers):
 
 
 def test_in_process_progress_reaches_the_printer():
-    from sensorimotor.report.workers import report
+    from sensorimotor.jobs.workers import send_progress
 
     lines = []
 
     def job() -> int:
-        report("run-a", "epoch 0")
+        send_progress("run-a", "epoch 0")
         return 1
 
     results, failures = run_jobs(

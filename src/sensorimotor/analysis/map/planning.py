@@ -27,8 +27,8 @@ import math
 
 import numpy as np
 
-from sensorimotor.analysis.cells import STRAIGHT
-from sensorimotor.analysis.chmm import CloneHMM
+from sensorimotor.analysis.map.cells import STRAIGHT
+from sensorimotor.analysis.map.chmm import CloneHMM
 from sensorimotor.sim.core import (
     TURN_THRESHOLD,
     SensorLayout,

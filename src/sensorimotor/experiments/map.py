@@ -30,14 +30,14 @@ from pathlib import Path
 
 import numpy as np
 
+from sensorimotor.analysis.analyze import short_name, with_raw
 from sensorimotor.files import file_hash, read_json, write_json_atomic
-from sensorimotor.report.cache import read_key, stage_key
+from sensorimotor.jobs.cache import read_key, stage_key
+from sensorimotor.jobs.workers import Job
+from sensorimotor.learn.models import KINDS
 from sensorimotor.report.document import h, image, p, table
-from sensorimotor.report.workers import Job
 from sensorimotor.version import __version__
 
-MODELS = ("raw", "s", "sm", "rec-s", "rec-sm")
-LABELS = {"raw": "raw", "s": "S", "sm": "SM", "rec-s": "Rec-S", "rec-sm": "Rec-SM"}
 PAIRS = {
     "smoke": 10,
     "quick": 100,
@@ -79,7 +79,7 @@ MARGINS = {"predicts": 0.05, "localises": 0.02, "plans": 0.05}  # bits/step; acc
 
 def _map_job(run: str, data: str, out: str, seed: int, pairs: int, key: str) -> dict:
     """One map (a worker's job): ``map_files`` into ``out``, then its cache key."""
-    from sensorimotor.analysis.mapping import map_files
+    from sensorimotor.analysis.map.mapping import map_files
 
     res = map_files(run, data, out, seed=seed, pairs=pairs)
     write_json_atomic(Path(out) / "stage.json", {"key": key})
@@ -100,11 +100,11 @@ def targets(rep) -> list[tuple[str, str, str, str, int]]:
 
 
 def _settings(rep) -> dict:
-    from sensorimotor.analysis.chmm import EM_ITERS
     from sensorimotor.analysis.clusters import N_CLUSTERS
-    from sensorimotor.analysis.context import CONTEXT_TAU, N_CONTEXTS
-    from sensorimotor.analysis.mapping import N_CLONES
-    from sensorimotor.analysis.planning import BUDGET, N_PAIRS
+    from sensorimotor.analysis.map.chmm import EM_ITERS
+    from sensorimotor.analysis.map.context import CONTEXT_TAU, N_CONTEXTS
+    from sensorimotor.analysis.map.mapping import N_CLONES
+    from sensorimotor.analysis.map.planning import BUDGET, N_PAIRS
 
     pairs = PAIRS.get(getattr(rep.scale, "name", ""), N_PAIRS)
     settings = {"clusters": N_CLUSTERS, "clones": N_CLONES, "em_iters": EM_ITERS}
@@ -186,7 +186,7 @@ def aggregate(per_map: list[tuple[str, str, int, dict]]) -> dict:
     out: dict[str, dict] = {}
     for world, models in grouped.items():
         out[world] = {}
-        for model in [m for m in MODELS if m in models] + [m for m in models if m not in MODELS]:
+        for model in [m for m in with_raw() if m in models] + [m for m in models if m not in with_raw()]:
             maps = sorted(models[model], key=lambda sm: sm[0])
             values = {key: [_get(m, path) for _, m in maps] for key, path, _, _ in METRICS}
             pairs = [_get(m, "planning.pairs") for _, m in maps]
@@ -268,7 +268,7 @@ def section(rep, found: dict) -> list:
     for world, models in found["worlds"].items():
         names = list(models)
         b.append(h(3, f"The map on {world}"))
-        header = ["", *(f"{LABELS.get(n, n)} (n={len(models[n]['seeds'])})" for n in names)]
+        header = ["", *(f"{short_name(n)} (n={len(models[n]['seeds'])})" for n in names)]
         rows = [
             [label, *(_cell(models[n]["metrics"][key], spec) for n in names)]
             for key, _, label, spec in METRICS
@@ -280,7 +280,7 @@ def section(rep, found: dict) -> list:
         ]
         b.append(table(["claim (paired difference)", *header[1:]], rows))
         shown = found["figures"].get(world, {})
-        trained = [n for n in MODELS[1:] if n in shown]  # the last of MODELS: Rec-SM if there
+        trained = [n for n in KINDS if n in shown]  # the last kind: Rec-SM if there
         pick = trained[-1] if trained else next(iter(shown), None)
         if pick is not None:
             for fig, caption in zip(
@@ -290,5 +290,5 @@ def section(rep, found: dict) -> list:
             ):
                 path = Path(rep.out) / shown[pick][fig]
                 if path.exists():
-                    b.append(image(path, f"{LABELS.get(pick, pick)} on {world}: {caption}"))
+                    b.append(image(path, f"{short_name(pick)} on {world}: {caption}"))
     return b

@@ -9,13 +9,13 @@ from types import SimpleNamespace
 
 import pytest
 
+from sensorimotor import experiments as ex
 from sensorimotor.errors import InputError
+from sensorimotor.experiments import map as map_stage
+from sensorimotor.jobs.workers import run_jobs
 from sensorimotor.learn.runs import TrainConfig
 from sensorimotor.learn.train import train
-from sensorimotor.report import experiments as ex
-from sensorimotor.report import map_stage
 from sensorimotor.report.document import to_markdown
-from sensorimotor.report.workers import run_jobs
 from sensorimotor.sim.database import generate, save_database
 from sensorimotor.sim.world import load_world
 

@@ -18,7 +18,7 @@ import pytest
 from conftest import assert_one_line_error
 from sensorimotor.errors import InputError
 from sensorimotor.learn.runs import parse_settings
-from sensorimotor.report.sweep import read_sweep, run_sweep
+from sensorimotor.pipeline.sweep import read_sweep, run_sweep
 from sensorimotor.sim.database import generate, save_database
 from sensorimotor.sim.world import load_world
 
@@ -134,7 +134,7 @@ def test_asking_for_ray_without_it_is_one_line(cli, tmp_path, folder, monkeypatc
     )
     assert_one_line_error(proc, "Ray is not installed", '".[ray]"')
     assert not (tmp_path / "s").exists()
-    from sensorimotor.report.reproduce import reproduce
+    from sensorimotor.reproduce import reproduce
 
     monkeypatch.setitem(sys.modules, "ray", None)  # `import ray` fails in this process too
     with pytest.raises(InputError, match="Ray is not installed"):
@@ -198,8 +198,8 @@ def test_a_local_sweep_killed_and_resumed_finishes_every_trial(folder, tmp_path)
 
 
 def test_a_bad_backend_or_address_is_refused_before_ray_starts(folder, tmp_path):
-    from sensorimotor.report.ray_backend import _check_reachable
-    from sensorimotor.report.reproduce import reproduce
+    from sensorimotor.jobs.ray_backend import _check_reachable
+    from sensorimotor.reproduce import reproduce
 
     with pytest.raises(InputError, match="--backend: use local or ray, got 'dask'"):
         reproduce(tmp_path / "r", backend="dask")

@@ -237,7 +237,7 @@ def test_a_failing_worker_names_its_run_and_finished_runs_are_kept(smoke, tmp_pa
 def test_a_bad_database_in_a_stack_across_worlds_fails_only_its_runs(tmp_path):
     from sensorimotor.errors import InputError
     from sensorimotor.files import file_hash
-    from sensorimotor.report.reproduce import _train_job
+    from sensorimotor.pipeline.stages import train_job
     from sensorimotor.sim.database import generate, save_database
     from sensorimotor.sim.world import load_world
 
@@ -252,7 +252,7 @@ def test_a_bad_database_in_a_stack_across_worlds_fails_only_its_runs(tmp_path):
     ]
     config = {"model": "s", "device": "cpu", "max_epochs": 1, "patience": 10}
     with pytest.raises(InputError, match=r"^rooms2__s__s0 \(and 1 more runs\): .*rooms2\.npz"):
-        _train_job(runs, config)
+        train_job(runs, config)
     assert (tmp_path / "square__s__s0" / "model.pt").exists()  # trained, kept for the retry
     assert not (tmp_path / "rooms2__s__s0").exists()
 
@@ -261,9 +261,10 @@ def test_a_bad_database_in_a_stack_across_worlds_fails_only_its_runs(tmp_path):
 
 
 def test_a_database_is_keyed_by_its_size_and_a_run_by_its_scales_patience():
-    from sensorimotor.report.reproduce import SCALES, _data_key, _train_config
+    from sensorimotor.pipeline.paper import SCALES, _train_config
+    from sensorimotor.pipeline.stages import data_key
 
-    keys = {_data_key(w, sc) for w in ("square", "rooms1") for sc in SCALES.values()}
+    keys = {data_key(w, sc.steps) for w in ("square", "rooms1") for sc in SCALES.values()}
     assert len(keys) == 2 * len(SCALES)
     assert _train_config(SCALES["quick"], "s", "cpu")["patience"] == SCALES["quick"].patience == 50
     assert _train_config(SCALES["quick"], "rec-sm", "cpu")["max_epochs"] == 80
@@ -275,7 +276,7 @@ def test_a_kept_run_is_retrained_when_its_data_settings_or_model_sizes_change(
     from sensorimotor.files import file_hash
     from sensorimotor.learn.runs import TrainConfig
     from sensorimotor.learn.train import train
-    from sensorimotor.report.reproduce import run_matches
+    from sensorimotor.pipeline.stages import run_matches
 
     config = {"model": "s", "max_epochs": 1}
     run = train(square_db_path, tmp_path / "run", TrainConfig(**config)).run_dir
@@ -291,7 +292,7 @@ def test_a_kept_run_is_retrained_when_its_data_settings_or_model_sizes_change(
 
 def test_a_kept_analysis_is_redone_when_the_metrics_change(tmp_path, monkeypatch):
     import sensorimotor.analysis as analysis
-    from sensorimotor.report.reproduce import _analysis_job_of
+    from sensorimotor.pipeline.paper import _analysis_job_of
 
     dest = tmp_path / "raw__square"
     target = ("raw__square", "raw", "db.npz", None, str(dest))
@@ -306,7 +307,7 @@ def test_a_kept_analysis_is_redone_when_the_metrics_change(tmp_path, monkeypatch
 
 
 def test_a_kept_evaluation_is_redone_when_its_model_or_data_change(tmp_path):
-    import sensorimotor.report.reproduce as rp
+    import sensorimotor.pipeline.paper as rp
 
     rep = rp.Reproduction(tmp_path, rp.SCALES["smoke"], 1, "cpu", 1)
     rep.data = {w: tmp_path / f"{w}.npz" for w in rp.WORLDS}
@@ -324,7 +325,7 @@ def test_a_kept_evaluation_is_redone_when_its_model_or_data_change(tmp_path):
 
 
 def test_a_transfer_fits_on_the_training_world_and_applies_to_another(tmp_path):
-    import sensorimotor.report.reproduce as rp
+    import sensorimotor.pipeline.paper as rp
 
     rep = rp.Reproduction(tmp_path, rp.SCALES["smoke"], 1, "cpu", 1)
     rep.data = {w: tmp_path / f"{w}.npz" for w in rp.WORLDS}
@@ -338,11 +339,10 @@ def test_a_transfer_fits_on_the_training_world_and_applies_to_another(tmp_path):
 
 def test_a_crash_in_a_job_is_not_reported_as_bad_input():
     from sensorimotor.errors import InputError
-    from sensorimotor.report.reproduce import _raise_failures
-    from sensorimotor.report.workers import JobFailure
+    from sensorimotor.jobs.workers import JobFailure, raise_first
 
     with pytest.raises(RuntimeError, match="run square__s__s0 failed") as info:
-        _raise_failures([JobFailure("square__s__s0", ZeroDivisionError("x"))], print)
+        raise_first([JobFailure("square__s__s0", ZeroDivisionError("x"))], "run ", print)
     assert not isinstance(info.value, InputError)
     assert isinstance(info.value.__cause__, ZeroDivisionError)
 

@@ -10,11 +10,11 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from sensorimotor import experiments as ex
+from sensorimotor.experiments import scaling as sc
+from sensorimotor.experiments.scaling_report import section, verdicts
 from sensorimotor.files import file_hash
-from sensorimotor.report import experiments as ex
-from sensorimotor.report import scaling as sc
-from sensorimotor.report.scaling_report import section, verdicts
-from sensorimotor.report.workers import run_jobs
+from sensorimotor.jobs.workers import run_jobs
 from sensorimotor.sim.database import generate, load_database, save_database
 
 
@@ -112,7 +112,7 @@ def test_verdicts_hold_fail_and_say_na_by_their_thresholds():
 
 @pytest.mark.parametrize("name", ["scaling"])
 def test_scaling_is_registered_but_not_run_by_default(name):
-    assert ex.EXPERIMENTS[name] == "sensorimotor.report.scaling"
+    assert ex.EXPERIMENTS[name] == "sensorimotor.experiments.scaling"
     assert name not in ex.DEFAULT
     assert ex.module(name).run is sc.run
     assert ex.module(name).section is section

@@ -32,14 +32,16 @@ from pathlib import Path
 
 import numpy as np
 
+from sensorimotor.analysis.analyze import with_raw
 from sensorimotor.errors import InputError
+from sensorimotor.experiments.scaling_report import finite, plot_errors, section, verdicts
 from sensorimotor.files import file_hash, read_json, write_json_atomic
+from sensorimotor.jobs.cache import read_key, stage_key
+from sensorimotor.jobs.workers import Job
 from sensorimotor.learn.evaluate import mean_sd
-from sensorimotor.learn.models import MODEL_KINDS
+from sensorimotor.learn.models import KINDS
 from sensorimotor.learn.runs import run_name
-from sensorimotor.report.cache import read_key, stage_key
-from sensorimotor.report.scaling_report import KINDS, finite, plot_errors, section, verdicts
-from sensorimotor.report.workers import Job, report
+from sensorimotor.pipeline.stages import analysis_job, eval_job, train_and_tell, train_config
 from sensorimotor.version import __version__
 
 WORLD = "rooms2"  # the built-in world of the ray and noise conditions (module docstring)
@@ -171,44 +173,20 @@ def _merge_job(parts: list[str], path: str, name: str, key: str) -> str:
 
 
 def _train_job(data: str, runs: list[tuple[int, str]], config: dict, key: str) -> dict:
-    """Every seed of one model on one database, in one ``train_runs`` call (stacked where it
-    can); a run folder made from other inputs is cleared first, one of these inputs resumed."""
-    from sensorimotor.learn.runs import TrainConfig
-    from sensorimotor.learn.train import train_runs
-
+    """Every seed of one model on one database, in one ``train.train_runs`` call (stacked where
+    it can); a run folder made from other inputs is cleared first, one of these inputs resumed."""
     for _, run_dir in runs:
         run = Path(run_dir)
         run.parent.mkdir(parents=True, exist_ok=True)
         if run.exists() and read_key(_mark(run)) != key:
             shutil.rmtree(run)
-    names = [Path(r).name for _, r in runs]
-
-    def on_epoch(i, r, stopper) -> None:
-        report(names[i], f"epoch {r.epoch:3d} val {r.val_error:.5f} (best {stopper.lowest:.5f})")
-
     write_marks = [_mark(r) for _, r in runs]
     for mark in write_marks:  # the inputs the folder is from, before it is written
         write_json_atomic(mark, {"key": key, "done": False})
-    results = train_runs(data, runs, TrainConfig(**config, seed=0), resume=True, on_epoch=on_epoch)
+    results = train_and_tell(data, runs, config)
     for mark in write_marks:
         write_json_atomic(mark, {"key": key, "done": True})
-    return {n: r.best_val_error for n, r in zip(names, results, strict=True)}
-
-
-def _eval_job(run_dir: str, data: list[str], out: str, key: str) -> dict:
-    from sensorimotor.learn.evaluate import evaluate_run
-
-    result = evaluate_run(run_dir, data)
-    write_json_atomic(Path(out), {"key": key, "result": result})
-    return result
-
-
-def _analysis_job(run: str, data: str, out: str, key: str) -> dict:
-    from sensorimotor.analysis import analyze_files
-
-    metrics = analyze_files(run, data, out).metrics
-    write_json_atomic(Path(out) / "stage.json", {"key": key})
-    return metrics
+    return results
 
 
 # --- the stages --------------------------------------------------------------------------------
@@ -291,12 +269,7 @@ def _trained(run_dir: str, key: str) -> bool:
 
 
 def _train_config(size: Size, model: str, device: str) -> dict:
-    return {
-        "model": model,
-        "device": device,
-        "max_epochs": size.max_epochs.get(model),
-        "patience": size.patience,
-    }
+    return train_config(model, device, size.max_epochs.get(model), size.patience)
 
 
 def _run_dirs(ctx, cond: Condition, model: str, size: Size) -> list[tuple[int, str]]:
@@ -308,7 +281,7 @@ def _train_jobs(ctx, size: Size, plans: list[Plan], device: str, hashes: dict) -
 
     jobs = []
     for plan in plans:
-        for model in MODEL_KINDS:
+        for model in KINDS:
             config = _train_config(size, model, device)
             key = stage_key(
                 {
@@ -330,7 +303,7 @@ def _eval_targets(ctx, plan: Plan, size: Size) -> list[tuple[str, list[Path], Pa
     data = [*plan.test_data, *plan.seen_data]
     return [
         (run, data, ctx.dir / "eval" / f"{Path(run).name}.json")
-        for model in MODEL_KINDS
+        for model in KINDS
         for _, run in _run_dirs(ctx, plan.cond, model, size)
     ]
 
@@ -342,7 +315,7 @@ def _analysis_targets(ctx, plan: Plan, size: Size) -> list[tuple[str, str, str, 
     for db in plan.test_data:
         where = ctx.dir / "analysis"
         out.append(("raw", "raw", str(db), where / f"raw__{plan.cond.name}__on__{db.stem}"))
-        for model in MODEL_KINDS:
+        for model in KINDS:
             for _, run in _run_dirs(ctx, plan.cond, model, size):
                 out.append((model, run, str(db), where / f"{Path(run).name}__on__{db.stem}"))
     return out
@@ -377,7 +350,7 @@ def run_conditions(ctx, size: Size, conds: Sequence[Condition], device: str = "c
             if read_key(out) != key:
                 out.parent.mkdir(parents=True, exist_ok=True)
                 jobs.append(
-                    Job(Path(run).name, _eval_job, (run, [str(d) for d in data], str(out), key))
+                    Job(Path(run).name, eval_job, (run, [str(d) for d in data], str(out), key))
                 )
     ctx.run(jobs)
     ran["evaluate"] = len(jobs)
@@ -395,7 +368,7 @@ def run_conditions(ctx, size: Size, conds: Sequence[Condition], device: str = "c
                 }
             )
             if not ((out / "metrics.json").exists() and read_key(out / "stage.json") == key):
-                jobs.append(Job(out.name, _analysis_job, (run, data, str(out), key)))
+                jobs.append(Job(out.name, analysis_job, (run, data, str(out), None, key)))
     ctx.run(jobs)
     ran["analyze"] = len(jobs)
 
@@ -408,7 +381,7 @@ def run_conditions(ctx, size: Size, conds: Sequence[Condition], device: str = "c
         test_names = [db.meta["world"]["name"] for db in tests]
         seen_names = [load_database(p).meta["world"]["name"] for p in plan.seen_data]
         base = [baselines(db) for db in tests]
-        numbers: dict[str, dict[str, list]] = {k: {} for k in KINDS}
+        numbers: dict[str, dict[str, list]] = {k: {} for k in with_raw()}
         targets = _analysis_targets(ctx, plan, size)
         for db in plan.test_data:  # claims.claim_numbers of each test database's analyses
             mine = [(kind, run, out) for kind, run, data, out in targets if data == str(db)]
@@ -439,7 +412,7 @@ def condition_numbers(cond, evals, test_names, seen_names, base, numbers) -> dic
     of its mean over the test databases), on the training plans too for ``plans``, the
     baselines, the claim numbers (means over seeds and test databases) and the verdicts."""
     errors, seen = {}, {}
-    for kind in MODEL_KINDS:
+    for kind in KINDS:
         mine = [e for e in evals if e["model"] == kind]
         values = [float(np.mean([e["errors"][w] for w in test_names])) for e in mine]
         mean, sd = mean_sd(values)
@@ -451,7 +424,7 @@ def condition_numbers(cond, evals, test_names, seen_names, base, numbers) -> dic
             name: _mean(numbers[kind].get(name, []))
             for name in ("corner_f1", "nothing_clusters", "behind_r2")
         }
-        for kind in KINDS
+        for kind in with_raw()
     }
     return {
         "label": cond.label,

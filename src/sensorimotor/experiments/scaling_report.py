@@ -1,4 +1,4 @@
-"""The scaling experiment's verdicts and report section (``report.scaling`` runs it).
+"""The scaling experiment's verdicts and report section (``experiments.scaling`` runs it).
 
 Each paper finding gets a verdict per condition, with the threshold ``analysis.claims`` states
 for it on Square: the ordering of the test errors (``tables.paper_ordering_holds``: Rec-SM <
@@ -12,13 +12,13 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from sensorimotor.analysis.claims import SHORT
+from sensorimotor.analysis.analyze import short_name, with_raw
 from sensorimotor.analysis.tables import paper_ordering_holds
-from sensorimotor.learn.models import MODEL_KINDS
+from sensorimotor.learn.models import KINDS, REC_SM, SM, S
 from sensorimotor.report.document import Block, h, image, p, table
 
 GAP = 0.1  # the corner and memory thresholds of analysis.claims
-KINDS = ("raw", *MODEL_KINDS)
+
 
 
 def finite(v) -> float | None:
@@ -44,10 +44,10 @@ def verdicts(errors: dict[str, float], claims: dict[str, dict]) -> list[dict]:
             "verdict": _word(paper_ordering_holds(have)),
         }
     )
-    corner = {k: finite(claims.get(k, {}).get("corner_f1")) for k in KINDS}
+    corner = {k: finite(claims.get(k, {}).get("corner_f1")) for k in with_raw()}
     ok = None
     if None not in corner.values():
-        ok = min(corner["sm"], corner["rec-sm"]) >= max(corner["s"], corner["raw"]) + GAP
+        ok = min(corner[SM], corner[REC_SM]) >= max(corner[S], corner["raw"]) + GAP
     out.append(
         {
             "finding": "corner cluster",
@@ -64,11 +64,11 @@ def verdicts(errors: dict[str, float], claims: dict[str, dict]) -> list[dict]:
             finite(claims.get(k, {}).get("nothing_clusters")),
             finite(claims.get(k, {}).get("behind_r2")),
         )
-        for k in MODEL_KINDS
+        for k in KINDS
     }
     ok = None
-    if None not in (mem["rec-sm"][0], mem["rec-sm"][1], mem["s"][1]):
-        ok = mem["rec-sm"][0] > 1 and mem["rec-sm"][1] >= mem["s"][1] + GAP
+    if None not in (mem[REC_SM][0], mem[REC_SM][1], mem[S][1]):
+        ok = mem[REC_SM][0] > 1 and mem[REC_SM][1] >= mem[S][1] + GAP
     out.append(
         {
             "finding": "memory",
@@ -96,11 +96,11 @@ def plot_errors(conds: dict, path: Path) -> Path:
 
     fig = Figure(figsize=(7.5, 3.2), layout="constrained")
     ax = fig.add_subplot()
-    width = 0.8 / len(MODEL_KINDS)
-    for k, kind in enumerate(MODEL_KINDS):
+    width = 0.8 / len(KINDS)
+    for k, kind in enumerate(KINDS):
         ratios = [c["errors"][kind]["mean"] / c["copy_last"] for c in conds.values()]
-        xs = [i + (k - (len(MODEL_KINDS) - 1) / 2) * width for i in range(len(conds))]
-        ax.bar(xs, ratios, width, label=SHORT[kind])
+        xs = [i + (k - (len(KINDS) - 1) / 2) * width for i in range(len(conds))]
+        ax.bar(xs, ratios, width, label=short_name(kind))
     ax.axhline(1.0, color="k", lw=0.8, ls="--")
     ax.set_yscale("log")
     ax.set_xticks(range(len(conds)), list(conds))
@@ -113,7 +113,7 @@ def plot_errors(conds: dict, path: Path) -> Path:
 
 def _caps(caps: dict) -> str:
     caps = {k: v for k, v in caps.items() if v is not None}
-    return ", ".join(f"{SHORT[k]} {v}" for k, v in caps.items()) or "none"
+    return ", ".join(f"{short_name(k)} {v}" for k, v in caps.items()) or "none"
 
 
 def _f(v, digits: int = 2) -> str:
@@ -133,7 +133,7 @@ def condition_table(c: dict) -> Block:
     header += ["on its training plans"] if seen else []
     header += ["corner F1", "'nothing' clusters", "distance-behind R²"]
     rows = []
-    for kind in KINDS:
+    for kind in with_raw():
         claims = c["claims"][kind]
         if kind == "raw":
             cells = [
@@ -151,7 +151,7 @@ def condition_table(c: dict) -> Block:
             _f(claims["nothing_clusters"], 1),
             _f(claims["behind_r2"]),
         ]
-        rows.append([SHORT[kind], *cells])
+        rows.append([short_name(kind), *cells])
     return table(header, rows)
 
 

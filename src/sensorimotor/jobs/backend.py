@@ -10,8 +10,8 @@ from functools import partial
 from typing import Any
 
 from sensorimotor.errors import InputError
-from sensorimotor.report import workers as local
-from sensorimotor.report.workers import Job
+from sensorimotor.jobs import workers as local
+from sensorimotor.jobs.workers import Job, raise_first
 
 BACKENDS = ("local", "ray")
 GPU_SHARE = 0.25  # of a GPU, held by each Ray task of a CUDA job (tiny models)
@@ -38,7 +38,7 @@ def job_runner(
     if backend == "local":
         yield local.run_jobs, local.default_workers() if workers is None else workers
         return
-    from sensorimotor.report import ray_backend
+    from sensorimotor.jobs import ray_backend
 
     with ray_backend.ray_session(address, workers) as cpus:
         yield partial(ray_backend.run_jobs, gpus=gpus), cpus if workers is None else workers
@@ -50,10 +50,5 @@ def run_all(
     """Run ``(name, function, arguments)`` jobs; their results by name, or the first failure
     raised, named (an InputError stays one line)."""
     results, failures = run_jobs([Job(*job) for job in jobs], workers, on_progress)
-    if failures:
-        first = failures[0]
-        more = f" (and {len(failures) - 1} more)" if len(failures) > 1 else ""
-        if isinstance(first.error, InputError):
-            raise InputError(f"{first.name}: {first.error}{more}")
-        raise RuntimeError(f"{first.name} failed{more}") from first.error
+    raise_first(failures)
     return results

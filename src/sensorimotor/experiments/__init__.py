@@ -10,7 +10,8 @@ module named in ``EXPERIMENTS`` with two functions:
                                                OUT/NAME/NAME.json
     section(rep, found: dict) -> list[Block]   its report section, read from those numbers
 
-Its module must not import ``reproduce`` (it is handed the Reproduction): imports point one way.
+Its module must not import ``sensorimotor.reproduce`` (it is handed the ``pipeline.paper.Reproduction``):
+imports point one way.
 """
 
 from __future__ import annotations
@@ -23,11 +24,13 @@ from types import ModuleType
 
 from sensorimotor.errors import InputError
 from sensorimotor.files import write_json_atomic
+from sensorimotor.jobs.workers import raise_first
+from sensorimotor.pipeline.paper import Reproduction
 
 EXPERIMENTS: dict[str, str] = {
-    "map": "sensorimotor.report.map_stage",  # a map learned from the cells (issue 22)
-    "scaling": "sensorimotor.report.scaling",  # more rays, noise, unseen floor plans (issue 23)
-    "rl": "sensorimotor.report.rl_stage",  # PPO on the Rooms1 encoders (issue 25)
+    "map": "sensorimotor.experiments.map",  # a map learned from the cells
+    "scaling": "sensorimotor.experiments.scaling",  # more rays, noise, unseen floor plans
+    "rl": "sensorimotor.experiments.rl",  # PPO on the Rooms1 encoders
 }
 """name -> the module that runs it."""
 DEFAULT: tuple[str, ...] = ()
@@ -38,7 +41,7 @@ DEFAULT: tuple[str, ...] = ()
 class Context:
     """What an experiment's ``run`` is handed: the reproduction so far and how to run jobs."""
 
-    rep: object  # reproduce.Reproduction: out, scale, seeds, worlds, data, runs, analyses, ...
+    rep: Reproduction  # out, scale, seeds, worlds, data, runs, analyses, ...
     name: str
     run_jobs: Callable  # workers.run_jobs's signature, on the reproduction's backend
     workers: int
@@ -49,11 +52,7 @@ class Context:
         """Run ``jobs`` on the reproduction's runner; their results by name. The first failure
         is raised, an InputError as its one line."""
         results, failures = self.run_jobs(jobs, self.workers, self.progress)
-        if failures:
-            first = failures[0]
-            if isinstance(first.error, InputError):
-                raise InputError(f"{self.name}: {first.name}: {first.error}")
-            raise RuntimeError(f"{self.name}: {first.name} failed") from first.error
+        raise_first(failures, f"{self.name}: ")
         return results
 
     @property

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from sensorimotor.errors import InputError
 from sensorimotor.version import __version__
 
 _progress_queue = None  # set in each worker by _init_worker
@@ -42,7 +43,27 @@ class JobFailure:
     error: BaseException
 
 
-def report(name: str, message: str) -> None:
+def raise_first(
+    failures: list[JobFailure], prefix: str = "", log: Callable[[str], None] | None = None
+) -> None:
+    """Raise the first failure, named (``prefix`` before its name), after logging the others;
+    an InputError stays one line (a job's error that names the job already is not named twice).
+    Nothing if there is none."""
+    if not failures:
+        return
+    if log is not None:
+        for f in failures[1:]:
+            log(f"[red]failed: {f.name}: {f.error}")
+    first = failures[0]
+    more = f" (and {len(failures) - 1} more)" if len(failures) > 1 else ""
+    if isinstance(first.error, InputError):
+        msg = str(first.error)
+        msg = msg if msg.startswith(first.name) else f"{first.name}: {msg}"
+        raise InputError(f"{prefix}{msg}{more}")
+    raise RuntimeError(f"{prefix}{first.name} failed{more}: {first.error}") from first.error
+
+
+def send_progress(name: str, message: str) -> None:
     """Send a progress line from inside a job to the parent (printed there), or drop it."""
     if _progress_queue is not None:
         _progress_queue.put((name, message))

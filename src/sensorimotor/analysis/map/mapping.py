@@ -37,7 +37,8 @@ from pathlib import Path
 import numpy as np
 
 from sensorimotor.analysis.analyze import RAW, load_inputs, representation_of
-from sensorimotor.analysis.cells import (
+from sensorimotor.analysis.clusters import N_CLUSTERS, assign_clusters, fit_kmeans
+from sensorimotor.analysis.map.cells import (
     ACTION_NAMES,
     N_ACTIONS,
     SMOOTHING,
@@ -46,7 +47,7 @@ from sensorimotor.analysis.cells import (
     baseline_bits,
     cell_graph,
 )
-from sensorimotor.analysis.chmm import (
+from sensorimotor.analysis.map.chmm import (
     EM_ITERS,
     PSEUDOCOUNT,
     CloneHMM,
@@ -54,9 +55,8 @@ from sensorimotor.analysis.chmm import (
     fit_chmm,
     log_likelihood,
 )
-from sensorimotor.analysis.clusters import N_CLUSTERS, assign_clusters, fit_kmeans
-from sensorimotor.analysis.context import CONTEXT_TAU, MAX_CONTEXTS, N_CONTEXTS, slow_context
-from sensorimotor.analysis.planning import GOAL_RADIUS, N_PAIRS, encoder_of, planning
+from sensorimotor.analysis.map.context import CONTEXT_TAU, MAX_CONTEXTS, N_CONTEXTS, slow_context
+from sensorimotor.analysis.map.planning import GOAL_RADIUS, N_PAIRS, encoder_of, planning
 from sensorimotor.errors import InputError
 from sensorimotor.files import atomic_path, write_text_atomic
 from sensorimotor.sim.database import Database
@@ -403,7 +403,7 @@ def map_files(
 ) -> MapResult:
     """Build the map of ``run``'s representation (``"raw"`` or a run folder) of ``data`` and
     write ``map.json``, the GraphML files and the figures into ``out`` (module docstring)."""
-    from sensorimotor.analysis.map_plots import plot_map_graph, plot_place_fields, plot_plans
+    from sensorimotor.analysis.map.plots import plot_map_graph, plot_place_fields, plot_plans
     from sensorimotor.sim.plots import save_figure
 
     check_settings(clusters, clones, contexts)

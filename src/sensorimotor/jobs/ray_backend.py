@@ -3,7 +3,7 @@
 Past one machine, the jobs of ``reproduce`` (and a sweep's trials) run on a Ray cluster
 instead of local worker processes: each job becomes a task holding one CPU (and a GPU fraction
 when it trains on CUDA), placed by Ray on any node. What does not change: a job is a plain
-top-level function with picklable arguments; its progress (``workers.report``) reaches the same
+top-level function with picklable arguments; its progress (``workers.send_progress``) reaches the same
 display, here through a small actor the tasks write to and the driver drains; a failing job
 comes back as the exception it raised, named by its job; Ctrl-C cancels this run's tasks
 (killing their processes: every file is written whole and renamed, so a rerun goes on). Files
@@ -22,8 +22,8 @@ from contextlib import contextmanager
 from typing import Any
 
 from sensorimotor.errors import InputError
-from sensorimotor.report import workers as local
-from sensorimotor.report.workers import Job, JobFailure
+from sensorimotor.jobs import workers as local
+from sensorimotor.jobs.workers import Job, JobFailure
 
 MISSING = 'Ray is not installed: pip install -e ".[ray]" (or pip install "ray[tune]>=2.9,<3")'
 DRAIN_EVERY = 0.2  # seconds between reads of the progress actor
@@ -96,7 +96,7 @@ class _ProgressBox:
 
 
 class _ActorQueue:
-    """``workers.report``'s queue inside a task: each line goes to the progress actor."""
+    """``workers.send_progress``'s queue inside a task: each line goes to the progress actor."""
 
     def __init__(self, box) -> None:
         self.box = box

@@ -43,7 +43,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from sensorimotor.analysis.cells import check_sequence
+from sensorimotor.analysis.map.cells import check_sequence
 
 EM_ITERS = 100  # at most this many EM iterations
 VITERBI_ITERS = 20  # at most this many Viterbi-training iterations

@@ -22,16 +22,17 @@ from pathlib import Path
 
 from sensorimotor.errors import InputError
 from sensorimotor.files import file_hash
-from sensorimotor.report.cache import stage_key
+from sensorimotor.jobs.cache import stage_key
+from sensorimotor.learn.models import REC_S, REC_SM, SM, S
 from sensorimotor.report.document import Block, h, image, p, table
 from sensorimotor.rl.results import CLAIM, HEADLINE, MIN_SEEDS, THRESHOLD
 from sensorimotor.version import __version__
 
 TASKS = ("corner", "doorway", "explore")
-FEATURES = ("pose", "raw", "s", "sm", "rec-s", "rec-sm", "random")
+FEATURES = ("pose", "raw", S, SM, REC_S, REC_SM, "random")
 WORLD = "rooms1"  # where the agents learn, on encoders trained there
 TRANSFER = ("square", "rooms2")  # where the final policies are also evaluated
-ENCODERS = ("s", "sm", "rec-s", "rec-sm")  # the feature sets read from the reproduction's runs
+ENCODERS = (S, SM, REC_S, REC_SM)  # the feature sets read from the reproduction's runs
 
 
 @dataclass(frozen=True)
@@ -125,7 +126,7 @@ def run(ctx) -> dict:
     from sensorimotor.rl import check_extra
 
     check_extra()
-    from sensorimotor.report.backend import run_all
+    from sensorimotor.jobs.backend import run_all
     from sensorimotor.rl.runner import run_grid
 
     tasks = {}

@@ -59,8 +59,8 @@ from sensorimotor.files import (
     read_json,
     write_text_atomic,
 )
+from sensorimotor.jobs.workers import Job, JobFailure, default_workers, raise_first, send_progress
 from sensorimotor.learn.runs import SIZES, TrainConfig, model_config
-from sensorimotor.report.workers import Job, JobFailure, default_workers, report
 
 SEARCHES = ("grid", "random")
 SEARCHABLE = ("data", "model", "seed", "lr", "batch_size", "horizon", "patience", "min_ratio")
@@ -255,13 +255,13 @@ def _trial_job(name: str, data: str, run_dir: str, config: dict, sizes: dict) ->
     from sensorimotor.learn.train import train
 
     def on_epoch(r, stopper) -> None:
-        report(name, f"epoch {r.epoch:3d} val {r.val_error:.5f} (best {stopper.lowest:.5f})")
+        send_progress(name, f"epoch {r.epoch:3d} val {r.val_error:.5f} (best {stopper.lowest:.5f})")
 
     resume = (Path(run_dir) / "config.json").exists()
     train_config = TrainConfig(**config)
     model = model_config(train_config.model, sizes) if sizes else None
     result = train(data, run_dir, train_config, resume, on_epoch, model)
-    report(name, f"done: {result.ending}, best val {result.best_val_error:.5f}")
+    send_progress(name, f"done: {result.ending}, best val {result.best_val_error:.5f}")
     return result.best_val_error
 
 
@@ -342,11 +342,11 @@ def run_sweep(
     log: Callable[[str], None] = print,
 ) -> SweepResult:
     """Run (or with ``resume`` go on with) the sweep of file ``spec`` into folder ``out``."""
-    from sensorimotor.report.backend import check_backend
+    from sensorimotor.jobs.backend import check_backend
 
     check_backend(backend, address, workers)
     if backend == "ray":
-        from sensorimotor.report.ray_backend import import_ray
+        from sensorimotor.jobs.ray_backend import import_ray
 
         import_ray()  # a missing extra: said before anything is written
     sweep, out = read_sweep(spec), Path(out)
@@ -359,12 +359,12 @@ def run_sweep(
     else:
         failures = _run_ray(sweep, out, address, workers, resume, log)
     result = write_results(sweep, out, backend, failures)
-    _raise_failures(failures)
+    raise_first(failures)
     return result
 
 
 def _run_local(sweep: Sweep, out: Path, workers: int, log) -> list[JobFailure]:
-    from sensorimotor.report.workers import run_jobs
+    from sensorimotor.jobs.workers import run_jobs
 
     jobs = []
     for t in sweep.trials:
@@ -377,7 +377,7 @@ def _run_local(sweep: Sweep, out: Path, workers: int, log) -> list[JobFailure]:
 
 
 def _run_ray(sweep: Sweep, out: Path, address, workers, resume: bool, log) -> list[JobFailure]:
-    from sensorimotor.report.ray_backend import ray_session
+    from sensorimotor.jobs.ray_backend import ray_session
 
     _LOG[0] = log
     with ray_session(address, workers) as cpus:
@@ -476,7 +476,7 @@ def _progress_callback():
 def write_results(sweep: Sweep, out: Path, backend: str, failures: list[JobFailure]) -> SweepResult:
     """``sweep.csv`` (trial order), ``sweep.md`` (best first, with the best ``train`` command)
     and ``sweep.png`` (validation error against each searched setting), from the run folders."""
-    from sensorimotor.report import sweep_results as sr
+    from sensorimotor.pipeline import sweep_results as sr
 
     failed = {f.name for f in failures}
     # a trial without result.json and without failure was ended by ASHA (or by a kill)
@@ -511,14 +511,3 @@ def write_results(sweep: Sweep, out: Path, backend: str, failures: list[JobFailu
     ]
     files += sr.save_sweep_figure(rows, sweep.space, out / "sweep.png")
     return SweepResult(out, ranked, best, files, failures)
-
-
-def _raise_failures(failures: list[JobFailure]) -> None:
-    """The first failing trial as the error, named, as ``reproduce`` names a failing run."""
-    if not failures:
-        return
-    first = failures[0]
-    more = f" (and {len(failures) - 1} more)" if len(failures) > 1 else ""
-    if isinstance(first.error, InputError):
-        raise InputError(f"{first.name}: {first.error}{more}")
-    raise RuntimeError(f"{first.name} failed{more}: {first.error}") from first.error

@@ -60,7 +60,7 @@ def reproduce(
     ] = None,
 ) -> None:
     """Reproduce the paper: databases, the four models on the three worlds, Table I, the analysis, a report."""
-    from sensorimotor.report.reproduce import reproduce as reproduce_all
+    from sensorimotor.reproduce import reproduce as reproduce_all
 
     rep = reproduce_all(
         out,
@@ -96,7 +96,7 @@ def sweep(
     resume: Annotated[bool, typer.Option(help="Go on with the sweep in --out.")] = False,
 ) -> None:
     """Search training settings (grid, or random with a seed); on Ray, ASHA ends poor trials early."""
-    from sensorimotor.report.sweep import run_sweep
+    from sensorimotor.pipeline.sweep import run_sweep
 
     result = run_sweep(spec, out, backend, address, workers, resume, log=err_console.print)
     err_console.print(f"wrote {', '.join(map(str, result.files))}")

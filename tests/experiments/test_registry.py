@@ -10,8 +10,8 @@ from types import SimpleNamespace
 
 import pytest
 
+from sensorimotor import experiments as ex
 from sensorimotor.errors import InputError
-from sensorimotor.report import experiments as ex
 from sensorimotor.report.document import h, p
 
 
@@ -67,7 +67,7 @@ def test_numbers_that_are_not_json_are_refused_and_nothing_is_written(echo, tmp_
 
 
 def test_a_failed_job_is_raised_as_the_experiments_one_line(tmp_path):
-    from sensorimotor.report.workers import JobFailure
+    from sensorimotor.jobs.workers import JobFailure
 
     def runner(failure):
         return lambda jobs, workers, progress: ({"a": 1}, [failure] if failure else [])
@@ -78,5 +78,5 @@ def test_a_failed_job_is_raised_as_the_experiments_one_line(tmp_path):
     assert ctx(None).run([]) == {"a": 1}
     with pytest.raises(InputError, match=r"^echo: b: cannot square -1$"):
         ctx(JobFailure("b", InputError("cannot square -1"))).run([])
-    with pytest.raises(RuntimeError, match=r"^echo: c failed$"):
+    with pytest.raises(RuntimeError, match=r"^echo: c failed: x$"):
         ctx(JobFailure("c", ZeroDivisionError("x"))).run([])
