@@ -12,7 +12,7 @@ import json
 import sys
 from pathlib import Path
 
-from sensorimotor.experiments.walls import layout_sensitivity, sensitivity_markdown
+from sensorimotor.experiments.walls import sensitivity_markdown, wall_sensitivity
 from sensorimotor.files import write_text_atomic
 
 ROOT = Path(__file__).resolve().parent
@@ -27,7 +27,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=ROOT / "results")
     args = parser.parse_args()
     runs = sorted(args.runs.glob("square__*__s*"))
-    result = layout_sensitivity(
+    result = wall_sensitivity(
         runs, layouts=args.layouts, data_seeds=range(args.data_seeds), steps=args.steps,
         log=lambda line: print(line, file=sys.stderr, flush=True),
     )  # fmt: skip

@@ -165,3 +165,20 @@ def test_the_top_level_is_small_and_every_module_readable_in_one_sitting():
 @pytest.mark.parametrize("name", sensorimotor.__all__)
 def test_the_public_api_resolves(name):
     assert getattr(sensorimotor, name) is not None
+
+
+def test_a_model_kinds_name_is_written_in_the_registry_alone():
+    """Facts written once: no module but the registry spells a kind's name as a string (a
+    list of kinds is read from ``learn.models.KINDS``, a particular kind named by its constant)."""
+    from sensorimotor.learn.models import KINDS
+
+    spelled: dict[str, set[str]] = {}
+    for name, path in MODULES.items():
+        tree = ast.parse(path.read_text())
+        prose = {  # the literal text of f-strings ("3 epochs"): words, not names
+            id(v) for n in ast.walk(tree) if isinstance(n, ast.JoinedStr) for v in n.values
+        }
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Constant) and node.value in KINDS and id(node) not in prose:
+                spelled.setdefault(name, set()).add(node.value)
+    assert set(spelled) <= {"sensorimotor.learn.models", "sensorimotor.cli.app"}, spelled

@@ -30,7 +30,8 @@ def echo(monkeypatch):
 
     mod.run, mod.section = run, section
     monkeypatch.setitem(sys.modules, "echo_experiment", mod)
-    monkeypatch.setattr(ex, "EXPERIMENTS", {"echo": "echo_experiment", "other": "x"})
+    known = (ex.Experiment("echo", "echo_experiment", "echo"), ex.Experiment("other", "x", "x"))
+    monkeypatch.setattr(ex, "EXPERIMENTS", {e.name: e for e in known})
     monkeypatch.setattr(ex, "DEFAULT", ("echo",))
     return mod
 

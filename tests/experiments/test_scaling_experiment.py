@@ -112,7 +112,7 @@ def test_verdicts_hold_fail_and_say_na_by_their_thresholds():
 
 @pytest.mark.parametrize("name", ["scaling"])
 def test_scaling_is_registered_but_not_run_by_default(name):
-    assert ex.EXPERIMENTS[name] == "sensorimotor.experiments.scaling"
+    assert ex.EXPERIMENTS[name].module == "sensorimotor.experiments.scaling"
     assert name not in ex.DEFAULT
     assert ex.module(name).run is sc.run
     assert ex.module(name).section is section

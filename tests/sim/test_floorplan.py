@@ -10,7 +10,7 @@ from sensorimotor.errors import InputError
 from sensorimotor.sim import core as sim
 from sensorimotor.sim.floorplan import check_reachable, random_plan, world_toml
 from sensorimotor.sim.rosmap import import_ros_map
-from sensorimotor.sim.world import load_world, point_segment_distance, world_from_dict
+from sensorimotor.sim.world import load_world, world_from_dict
 
 
 @pytest.mark.parametrize(("rooms", "seed"), [(1, 0), (6, 1), (25, 2)])
@@ -157,24 +157,3 @@ def test_bad_maps_are_refused_in_one_line_naming_the_file(tmp_path, edit, needle
         import_ros_map(yaml)
     assert needle in str(err.value)
     assert "\n" not in str(err.value)
-
-
-# ---------------------------------------------------------------- layouts that fit the paper
-
-
-@pytest.mark.parametrize(("world", "horizontal", "vertical"), [("rooms1", 1, 1), ("rooms2", 1, 3)])
-def test_layout_families_fit_the_papers_sentences(world, horizontal, vertical):
-    from sensorimotor.experiments.walls import layout_family
-
-    family = layout_family(world, 8, seed=1)
-    assert family[0].walls.tolist() == load_world(world).walls.tolist()  # the built-in first
-    assert len({tuple(map(tuple, w.walls.tolist())) for w in family}) == 8  # all distinct
-    for w in family:
-        walls = w.walls
-        assert ((walls[:, 1] == walls[:, 3]) & (walls[:, 0] != walls[:, 2])).sum() == horizontal
-        assert ((walls[:, 0] == walls[:, 2]) & (walls[:, 1] != walls[:, 3])).sum() == vertical
-        # every wall hangs from another: its end lies on an outer or another wall
-        for k, (x0, y0, x1, y1) in enumerate(walls):
-            others = np.delete(w.segments, 4 + k, axis=0)
-            d = point_segment_distance(others, np.array([x0, x1]), np.array([y0, y1]))
-            assert d.min() < 1e-9

@@ -171,7 +171,7 @@ def paper_claims(
             (
                 "No corner cluster without motors: Rec-S's corner F1 stays at least 0.1 below SM's and "
                 "Rec-SM's (Square)",
-                f"Rec-S {corner['rec-s']:.2f}, SM {corner['sm']:.2f}, Rec-SM {corner['rec-sm']:.2f}",
+                f"Rec-S {corner[REC_S]:.2f}, SM {corner[SM]:.2f}, Rec-SM {corner[REC_SM]:.2f}",
                 _verdict(
                     list(corner.values()),
                     corner[REC_S] + 0.1 <= min(corner[SM], corner[REC_SM]),
@@ -195,7 +195,7 @@ def paper_claims(
             (
                 "Motors sharpen memory: Rec-SM tells 'nothing in view' states apart better than Rec-S "
                 "(distance-behind R² higher, Square)",
-                f"Rec-SM {mem['rec-sm'][1]:.2f}, Rec-S {mem['rec-s'][1]:.2f}",
+                f"Rec-SM {mem[REC_SM][1]:.2f}, Rec-S {mem[REC_S][1]:.2f}",
                 _verdict(flat, mem[REC_SM][1] > mem[REC_S][1]),
             )
         )

@@ -27,12 +27,36 @@ from sensorimotor.files import write_json_atomic
 from sensorimotor.jobs.workers import raise_first
 from sensorimotor.pipeline.paper import Reproduction
 
-EXPERIMENTS: dict[str, str] = {
-    "map": "sensorimotor.experiments.map",  # a map learned from the cells
-    "scaling": "sensorimotor.experiments.scaling",  # more rays, noise, unseen floor plans
-    "rl": "sensorimotor.experiments.rl",  # PPO on the Rooms1 encoders
+
+@dataclass(frozen=True)
+class Experiment:
+    """One experiment past the paper: its name in ``--experiment``, the module that holds its
+    ``run(ctx)`` and ``section(rep, found)``, and what it asks, in a line."""
+
+    name: str
+    module: str
+    about: str
+
+    def load(self) -> ModuleType:
+        return importlib.import_module(self.module)
+
+
+EXPERIMENTS: dict[str, Experiment] = {
+    e.name: e
+    for e in (
+        Experiment("map", "sensorimotor.experiments.map", "a map learned from the cells"),
+        Experiment(
+            "scaling", "sensorimotor.experiments.scaling", "more rays, noise, unseen floor plans"
+        ),
+        Experiment("rl", "sensorimotor.experiments.rl", "PPO agents on the Rooms1 encoders"),
+        Experiment(
+            "walls",
+            "sensorimotor.experiments.walls",
+            "Table I over wall layouts that fit the paper's sentences",
+        ),
+    )
 }
-"""name -> the module that runs it."""
+"""Every experiment by name, in the order they run."""
 DEFAULT: tuple[str, ...] = ()
 """The experiments ``reproduce`` runs unless told otherwise (cheap enough for every run)."""
 
@@ -79,7 +103,7 @@ def check_experiments(names: Sequence[str] | None) -> tuple[str, ...]:
 
 
 def module(name: str) -> ModuleType:
-    return importlib.import_module(EXPERIMENTS[name])
+    return EXPERIMENTS[name].load()
 
 
 def run_experiment(ctx: Context) -> dict:

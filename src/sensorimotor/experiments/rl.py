@@ -24,6 +24,7 @@ from sensorimotor.errors import InputError
 from sensorimotor.files import file_hash
 from sensorimotor.jobs.cache import stage_key
 from sensorimotor.learn.models import REC_S, REC_SM, SM, S
+from sensorimotor.learn.runs import count
 from sensorimotor.report.document import Block, h, image, p, table
 from sensorimotor.rl.results import CLAIM, HEADLINE, MIN_SEEDS, THRESHOLD
 from sensorimotor.version import __version__
@@ -227,7 +228,7 @@ def _task_blocks(rep, task: str, entry: dict) -> list[Block]:
     blocks = [
         h(3, f"{task} in {rl['world']}"),
         p(
-            f"Final success rate over {rl['seeds']} seed{'s' * (rl['seeds'] != 1)} (mean "
+            f"Final success rate over {count(rl['seeds'], 'seed')} (mean "
             f"[95 % bootstrap CI], IQM) after "
             f"{rl['steps']:,} steps, {rl['eval_episodes']} evaluation episodes each; transfer: "
             f"the same policies, unchanged, in the other worlds (means); the mean return in "

@@ -15,6 +15,7 @@ from pathlib import Path
 from sensorimotor.analysis.analyze import short_name, with_raw
 from sensorimotor.analysis.tables import paper_ordering_holds
 from sensorimotor.learn.models import KINDS, REC_SM, SM, S
+from sensorimotor.learn.runs import count
 from sensorimotor.report.document import Block, h, image, p, table
 
 GAP = 0.1  # the corner and memory thresholds of analysis.claims
@@ -164,7 +165,7 @@ def section(rep, found: dict) -> list[Block]:
         h(2, "Does it scale? More rays, noise, unseen floor plans"),
         p(
             f"S, SM, Rec-S and Rec-SM trained in each condition below ({size['steps']:,}-step "
-            f"databases, {size['seeds']} seed{'s' if size['seeds'] != 1 else ''}, patience "
+            f"databases, {count(size['seeds'], 'seed')}, patience "
             f"{size['patience']}, epoch caps {_caps(size['max_epochs'])}; the plans condition "
             "trains on "
             "the train splits of 10 generated plans together and is tested on 10 others). "

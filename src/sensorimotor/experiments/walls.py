@@ -4,11 +4,16 @@ all fit the paper's one-sentence descriptions of Rooms1 and Rooms2.
 The paper describes Rooms1 as "one vertical wall and one horizontal wall" and Rooms2 as "one
 horizontal and three vertical walls"; ``docs/DESIGN.md`` had to guess their walls. Table I's
 Rooms1 and Rooms2 columns are models trained on Square, so a layout costs only a test database
-and an evaluation per model: ``layout_family`` draws layouts that fit a sentence (wall
+and an evaluation per model: ``wall_family`` draws layouts that fit a sentence (wall
 positions and lengths, attached to the outer wall or to each other, with openings at least
-``MIN_GAP`` wide), and ``layout_sensitivity`` evaluates the published Square models on each, to
+``MIN_GAP`` wide), and ``wall_sensitivity`` evaluates the published Square models on each, to
 report every cell as the range over the family with the paper's value placed in it. The
 built-in worlds are not changed to fit the paper.
+
+As ``reproduce --experiment walls`` it tests the reproduction's own Square-trained runs, on
+``FAMILIES`` layouts of each family per scale, each world's family one job, cached in
+``OUT/walls/`` by the weights and the settings; ``python docs/layout_sensitivity.py`` runs it on
+the shipped paper-scale runs.
 """
 
 from __future__ import annotations
@@ -20,9 +25,15 @@ import numpy as np
 
 from sensorimotor.analysis.tables import PAPER_TABLE_I
 from sensorimotor.errors import InputError
+from sensorimotor.files import file_hash, read_json, write_json_atomic
+from sensorimotor.jobs.cache import read_key, stage_key
+from sensorimotor.jobs.workers import Job
 from sensorimotor.learn.evaluate import evaluate_run, load_run
+from sensorimotor.learn.models import KINDS
+from sensorimotor.report.document import Block, h, p, table
 from sensorimotor.sim.database import generate
 from sensorimotor.sim.world import World, load_world, point_segment_distance, world_from_dict
+from sensorimotor.version import __version__
 
 SIZE = 50.0  # the paper's worlds are 50 x 50
 MIN_GAP = 6.0  # units; an opening between a wall's free end and another wall
@@ -84,7 +95,7 @@ def _rooms2(rng: np.random.Generator) -> list[list[float]]:
             return [[round(v, 3) for v in w] for w in walls]
 
 
-def layout_family(world: str, count: int, seed: int = 0) -> list[World]:
+def wall_family(world: str, count: int, seed: int = 0) -> list[World]:
     """``count`` distinct layouts that fit the paper's sentence for ``world`` (rooms1, rooms2),
     named ``{world}-layoutK``; the first is the built-in world (DESIGN.md's guess), renamed."""
     draw = {"rooms1": _rooms1, "rooms2": _rooms2}.get(world)
@@ -103,7 +114,7 @@ def layout_family(world: str, count: int, seed: int = 0) -> list[World]:
     ]
 
 
-def layout_sensitivity(
+def wall_sensitivity(
     runs: Sequence[Path],
     worlds: Sequence[str] = ("rooms1", "rooms2"),
     layouts: int = 12,
@@ -118,11 +129,11 @@ def layout_sensitivity(
     loaded = [load_run(r) for r in runs]
     if any(r.trained_on != "square" for r in loaded):
         raise InputError("layout sensitivity reads models trained on square (Table I)")
-    kinds = sorted({r.kind for r in loaded}, key=list(PAPER_TABLE_I).index)
+    kinds = [k for k in KINDS if k in {r.kind for r in loaded}]
     data_seeds = list(data_seeds)
     result: dict = {"steps": steps, "data_seeds": data_seeds, "worlds": {}}
     for name in worlds:
-        family = layout_family(name, layouts)
+        family = wall_family(name, layouts)
         errors = {k: np.zeros((len(family), len(data_seeds))) for k in kinds}
         for i, w in enumerate(family):
             for j, s in enumerate(data_seeds):
@@ -136,15 +147,15 @@ def layout_sensitivity(
         cells = {}
         for k in kinds:
             e = errors[k]
-            paper = PAPER_TABLE_I[k][name]
+            paper = PAPER_TABLE_I.get(k, {}).get(name)  # None: a kind the paper did not have
             cells[k] = {
                 "min": float(e.min()),
                 "max": float(e.max()),
                 "builtin": float(e[0].mean()),
                 "builtin_seed_spread": float(e[0].max() - e[0].min()),
                 "paper": paper,
-                "paper_inside": bool(e.min() <= paper <= e.max()),
-                "paper_quantile": float((e < paper).mean()),
+                "paper_inside": None if paper is None else bool(e.min() <= paper <= e.max()),
+                "paper_quantile": None if paper is None else float((e < paper).mean()),
                 "per_layout": e.mean(axis=1).tolist(),
             }
         result["worlds"][name] = {
@@ -171,10 +182,86 @@ def sensitivity_markdown(result: dict) -> str:
             "|---|---|---|---|---|---|",
         ]
         for kind, c in res["cells"].items():
+            paper, inside, below = _paper(c)
             lines.append(
                 f"| {kind} | {c['min']:.5f} - {c['max']:.5f} | {c['builtin']:.5f} "
-                f"(± {c['builtin_seed_spread'] / 2:.5f}) | {c['paper']:.5f} | "
-                f"{'yes' if c['paper_inside'] else 'no'} | {100 * c['paper_quantile']:.0f} % |"
+                f"(± {c['builtin_seed_spread'] / 2:.5f}) | {paper} | {inside} | {below} |"
             )
         lines.append("")
     return "\n".join(lines)
+
+
+# --- reproduce --experiment walls ---------------------------------------------------------------
+
+FAMILIES = {"smoke": (2, (0,)), "quick": (4, (0,)), "paper": (12, (0, 1))}
+"""Layouts per family and test-database seeds, by scale (an unknown scale: ``quick``'s)."""
+TRAINED_ON = "square"  # Table I's models
+
+
+def _family_job(runs: list[str], world: str, layouts: int, seeds: list[int], steps: int,
+                out: str, key: str) -> dict:  # fmt: skip
+    result = wall_sensitivity(runs, (world,), layouts, seeds, steps)
+    write_json_atomic(Path(out), {"key": key, "result": result})
+    return result
+
+
+def run(ctx) -> dict:
+    """Each family's cells (``wall_sensitivity``) of the reproduction's Square-trained runs,
+    a job per world, each kept in ``OUT/walls/{world}.json`` by its key."""
+    rep = ctx.rep
+    if TRAINED_ON not in tuple(rep.worlds):
+        raise InputError(
+            "experiment walls: needs the models trained on square; add square to --worlds"
+        )
+    runs = [str(rep.run_dir(w, m, s)) for w, m, s in rep.runs if w == TRAINED_ON]
+    layouts, seeds = FAMILIES.get(getattr(rep.scale, "name", ""), FAMILIES["quick"])
+    steps = rep.scale.steps
+    weights = {Path(r).name: file_hash(Path(r) / "model.pt") for r in runs}
+    found, jobs = {}, []
+    for world in SENTENCES:
+        path = ctx.dir / f"{world}.json"
+        key = stage_key({"weights": weights, "world": world, "layouts": layouts,
+                         "seeds": list(seeds), "steps": steps, "version": __version__})  # fmt: skip
+        if read_key(path) == key:
+            found[world] = read_json(path, "walls result")["result"]
+        else:
+            args = (runs, world, layouts, list(seeds), steps, str(path), key)
+            jobs.append(Job(f"walls {world}", _family_job, args))
+    results = ctx.run(jobs) if jobs else {}
+    found |= {job.args[1]: results[job.name] for job in jobs}
+    return {
+        "steps": steps,
+        "data_seeds": list(seeds),
+        "worlds": {w: found[w]["worlds"][w] for w in SENTENCES},
+    }
+
+
+def _paper(c: dict) -> list[str]:
+    """The paper's value, whether the family holds it, and the share of tests below it."""
+    if c["paper"] is None:
+        return ["n/a", "n/a", "n/a"]
+    inside = "yes" if c["paper_inside"] else "no"
+    return [f"{c['paper']:.5f}", inside, f"{100 * c['paper_quantile']:.0f} %"]
+
+
+def section(rep, found: dict) -> list[Block]:
+    """One table per family: each model's range over the layouts, the built-in layout's
+    error and where the paper's value falls."""
+    blocks = [h(2, "How much of Table I is the wall layout?")]
+    blocks.append(
+        p(
+            f"Square-trained models tested on layouts that fit the paper's sentences, the "
+            f"built-in one first; {len(found['data_seeds'])} test database(s) of "
+            f"{found['steps']:,} steps per layout (test: the last 10 %)."
+        )
+    )
+    for name, res in found["worlds"].items():
+        blocks.append(p(f'{name} ("{res["sentence"]}"): {len(res["layouts"])} layouts.'))
+        rows = [
+            [kind, f"{c['min']:.5f} - {c['max']:.5f}", f"{c['builtin']:.5f}", *_paper(c)]
+            for kind, c in res["cells"].items()
+        ]  # fmt: skip
+        header = ["model", "family range", "built-in", "paper", "paper inside?",
+                  "tests below the paper"]  # fmt: skip
+        blocks.append(table(header, rows))
+    return blocks

@@ -50,11 +50,6 @@ def run_matches(run: Path, data_sha: str, config: dict) -> bool:
     )
 
 
-# Core-seconds one seed took in its stack in the paper grid on a 2-core CPU (docs/results.md):
-# the order in which training jobs start (longest first).
-SEED_COST = {"rec-sm": 230, "rec-s": 77, "sm": 44, "s": 20}
-
-
 def stack_name(model: str, runs: list[tuple[str, int]]) -> str:
     """A stacked job's name: ``square+rooms1__sm__s0,1`` where every world has those seeds."""
     seeds: dict[str, list[str]] = {}

@@ -48,7 +48,8 @@ class SensorLayout:
             if n == 1
             else (f"over [{min(self.angles):g}, {max(self.angles):g}] rad")
         )
-        return f"{n} ray{'s' if n != 1 else ''} {span}, range {self.max_range:g}"
+        rays = "ray" if n == 1 else "rays"
+        return f"{n} {rays} {span}, range {self.max_range:g}"
 
 
 def spread_layout(rays: int = 5, fov: float = 1.2, max_range: float = MAX_RANGE) -> SensorLayout:

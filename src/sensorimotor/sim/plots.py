@@ -191,7 +191,7 @@ def save_figure(fig: Figure, path: str | Path, svg: bool = False, dpi: int = 150
     for target, _ in targets:  # before writing any: no PNG without its SVG
         check_writable(target)
     for target, fmt in targets:
-        with atomic_path(target, f".{fmt}") as tmp, mpl.rc_context({"svg.hashsalt": "sm"}):
+        with atomic_path(target, f".{fmt}") as tmp, mpl.rc_context({"svg.hashsalt": "sensorimotor"}):
             fig.savefig(tmp, format=fmt, dpi=dpi)
         written.append(target)
     return written
