@@ -48,7 +48,7 @@ _API = {
     "train_seeds": "sensorimotor.learn.train",
     "load_run": "sensorimotor.learn.evaluate",
     "evaluate_run": "sensorimotor.learn.evaluate",
-    "representation": "sensorimotor.learn.evaluate",
+    "encode": "sensorimotor.learn.evaluate",
     "analyze_files": "sensorimotor.analysis.analyze",
     "map_files": "sensorimotor.analysis.map.mapping",
     "reproduce": "sensorimotor.reproduce",

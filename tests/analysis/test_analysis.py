@@ -193,7 +193,7 @@ def test_assign_refuses_another_dimension():
 
 def test_analyze_raw_readings(square_test):
     world, part = square_test
-    z = an.raw_representation(part.sensors)
+    z = an.scaled_readings(part.sensors)
     res = an.analyze_representation(z, part.sensors, part.poses, world, seed=0)
     m = json.loads(json.dumps(res.metrics))  # JSON-ready
     assert m["n_steps"] == len(part) == len(res.labels) == len(res.pc)
@@ -213,11 +213,11 @@ def test_analyze_raw_readings(square_test):
 def test_transfer_applies_clusters_fitted_on_another_world(square_test, rooms1_db_path):
     world, part = square_test
     source = an.analyze_representation(
-        an.raw_representation(part.sensors), part.sensors, part.poses, world, seed=0
+        an.scaled_readings(part.sensors), part.sensors, part.poses, world, seed=0
     )
     rooms1 = load_database(rooms1_db_path)
     target = rooms1.take("test")
-    z = an.raw_representation(target.sensors)
+    z = an.scaled_readings(target.sensors)
     res = an.analyze_representation(
         z, target.sensors, target.poses, rooms1.world, kmeans=source.kmeans, pca=source.pca
     )
@@ -274,7 +274,7 @@ def test_a_transferred_cluster_that_no_step_falls_in_keeps_its_panel(square_test
 
 def test_pca_figure(square_test):
     _, part = square_test
-    pc = an.pca_2d(an.raw_representation(part.sensors))
+    pc = an.pca_2d(an.scaled_readings(part.sensors))
     ax = plot_pca(pc, part.sensors.min(axis=1))
     assert len(ax.figure.axes) == 2  # the map and its colour bar
     (points,) = [c for c in ax.collections if c.get_gid() == "pca"]
@@ -437,7 +437,7 @@ def test_heading_probes_are_not_swapped():
 
 def test_the_analysis_refuses_readings_that_are_not_the_layouts(square_test):
     world, part = square_test
-    z = an.raw_representation(part.sensors)
+    z = an.scaled_readings(part.sensors)
     with pytest.raises(ValueError, match=r"sensors must be \(N, 5\)"):
         an.analyze_representation(z, part.sensors[:, :4], part.poses, world)
     with pytest.raises(ValueError, match="poses \\(N, 3\\)"):

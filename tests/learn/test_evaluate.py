@@ -16,10 +16,10 @@ from conftest import assert_one_line_error
 from sensorimotor.errors import InputError
 from sensorimotor.learn.evaluate import (
     baselines,
+    encode,
     evaluate_run,
     load_run,
     prediction_error,
-    representation,
     run_model,
     split_tensors,
 )
@@ -224,11 +224,11 @@ def test_evaluate_prints_each_baseline_under_its_own_column(two_seeds, square_db
 
 def test_runs_and_databases_may_be_paths_or_loaded(two_seeds, square_db_path):
     run, db = load_run(two_seeds / "sm0"), load_database(square_db_path)
-    z = representation(run, db)
-    np.testing.assert_array_equal(representation(str(two_seeds / "sm0"), str(square_db_path)), z)
+    z = encode(run, db)
+    np.testing.assert_array_equal(encode(str(two_seeds / "sm0"), str(square_db_path)), z)
     assert evaluate_run(two_seeds / "sm0", square_db_path) == evaluate_run(run, [db])
     with pytest.raises(ValueError, match="unknown split 'testing': use one of train, val, test"):
-        representation(run, db, "testing")
+        encode(run, db, "testing")
 
 
 def test_errors_name_an_in_memory_database_by_its_world(two_seeds):
@@ -238,7 +238,7 @@ def test_errors_name_an_in_memory_database_by_its_world(two_seeds):
         match=r"^the in-memory database of square: recorded with 5 rays .* range 20; run .* "
         r"trained on 5 rays .* range 10$",
     ):
-        representation(two_seeds / "sm0", db)
+        encode(two_seeds / "sm0", db)
 
 
 def test_a_recurrent_pass_runs_on_one_thread_and_gives_the_threads_back(monkeypatch):

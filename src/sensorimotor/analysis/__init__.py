@@ -43,7 +43,7 @@ from sensorimotor.analysis.probes import (
 from sensorimotor.analysis.representation import (
     RepresentationAnalysis,
     analyze_representation,
-    raw_representation,
+    scaled_readings,
     world_events,
 )
 
@@ -75,8 +75,8 @@ __all__ = [
     "position_scores",
     "probe_r2",
     "project_2d",
-    "raw_representation",
     "representation_of",
+    "scaled_readings",
     "summary_lines",
     "world_events",
 ]

@@ -21,7 +21,7 @@ from sensorimotor.analysis.clusters import N_CLUSTERS
 from sensorimotor.analysis.representation import (
     RepresentationAnalysis,
     analyze_representation,
-    raw_representation,
+    scaled_readings,
 )
 from sensorimotor.errors import InputError
 from sensorimotor.files import atomic_path, check_writable, write_json_atomic
@@ -53,11 +53,11 @@ def representation_of(run, db: Database, split: str = SPLIT) -> np.ndarray:
             f"{db.source}: the {split} split has {n} steps; the analysis needs at least {N_CLUSTERS}"
         )
     if isinstance(run, str) and run == RAW:
-        z = raw_representation(db.take(split).sensors, db.max_range)
+        z = scaled_readings(db.take(split).sensors, db.max_range)
     else:
-        from sensorimotor.learn.evaluate import representation  # torch only for a model
+        from sensorimotor.learn.evaluate import encode  # torch only for a model
 
-        z = representation(run, db, split)
+        z = encode(run, db, split)
     distinct = len(np.unique(z[:100_000], axis=0))
     if distinct < N_CLUSTERS:  # k-means and PCA would only warn, and write NaN
         raise InputError(

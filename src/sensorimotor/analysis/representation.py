@@ -24,7 +24,7 @@ from sensorimotor.sim.core import DEFAULT_LAYOUT, SensorLayout
 from sensorimotor.sim.world import World
 
 
-def raw_representation(sensors: np.ndarray, max_range: float = 10.0) -> np.ndarray:
+def scaled_readings(sensors: np.ndarray, max_range: float = 10.0) -> np.ndarray:
     """The paper's sensory-space baseline: the readings divided by the range, (N, R) float32
     (the models' input scaling, ``data.scale_sensors``)."""
     from sensorimotor.sim.database import scale_sensors

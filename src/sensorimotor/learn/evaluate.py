@@ -153,7 +153,7 @@ def _describe(layout: dict) -> str:
         return str(layout)
 
 
-def representation(
+def encode(
     run: Run | str | Path, db: Database | str | Path, split: str = "test"
 ) -> np.ndarray:
     """z_s (n, 10) of a trained model over one split (recurrent: state carried from its start).

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from sensorimotor.learn.evaluate import load_run, representation
+from sensorimotor.learn.evaluate import encode, load_run
 from sensorimotor.sim.database import load_database
 
 # DATA: the folder of {world}.npz (sensorimotor generate WORLD --steps 1000000 --seed 0);
@@ -29,7 +29,7 @@ for seed in range(1, 5):
             if f.exists():
                 continue
             t = time.time()
-            z = representation(run, db, split)
+            z = encode(run, db, split)
             np.save(str(f) + ".tmp.npy", z)
             Path(str(f) + ".tmp.npy").rename(f)
             print(name, split, round(time.time() - t), "s", flush=True)
