@@ -24,7 +24,7 @@ from sensorimotor.files import file_hash, write_json_atomic
 from sensorimotor.jobs.cache import read_key, stage_key
 from sensorimotor.jobs.workers import Job, raise_first
 from sensorimotor.learn.models import KINDS, REC_SM
-from sensorimotor.learn.runs import count
+from sensorimotor.learn.runs import count, run_name
 from sensorimotor.pipeline.stages import (
     analysis_job,
     data_job,
@@ -109,8 +109,6 @@ class Reproduction:
     found: dict[str, dict] = field(default_factory=dict)  # each experiment's numbers
 
     def run_name(self, world: str, model: str, seed: int) -> str:
-        from sensorimotor.learn.runs import run_name
-
         return run_name(world, model, seed)
 
     def run_dir(self, world: str, model: str, seed: int) -> Path:
