@@ -36,10 +36,10 @@ import torch
 from rich.console import Console
 from rich.table import Table
 
-from sensorimotor.learn.adam import FusedAdam
 from sensorimotor.learn.batches import epoch_generator, epoch_orders
 from sensorimotor.learn.engine import train_epoch_feedforward, train_epoch_recurrent
 from sensorimotor.learn.fast import cuda_graphs
+from sensorimotor.learn.fast.adam import FusedAdam
 from sensorimotor.learn.fast.cpu import keep_freed_memory
 from sensorimotor.learn.fast.private import adam_
 from sensorimotor.learn.fast.stacked import StackedEncoders, train_epoch_stacked

@@ -19,7 +19,7 @@ from conftest import assert_one_line_error
 from sensorimotor.analysis.probes import position_scores, probe_r2
 from sensorimotor.errors import InputError
 from sensorimotor.files import atomic_path, folder_lock, strict_json, write_json_atomic
-from sensorimotor.learn.runs import TrainConfig
+from sensorimotor.learn.config import TrainConfig
 from sensorimotor.learn.train import train
 from sensorimotor.sim.core import read_sensors
 from sensorimotor.sim.database import Database, generate, load_database, save_database

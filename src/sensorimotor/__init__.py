@@ -43,7 +43,7 @@ _API = {
     "corner_in_view": "sensorimotor.sim.events",
     "ModelConfig": "sensorimotor.learn.models",
     "build_model": "sensorimotor.learn.models",
-    "TrainConfig": "sensorimotor.learn.runs",
+    "TrainConfig": "sensorimotor.learn.config",
     "train": "sensorimotor.learn.train",
     "train_seeds": "sensorimotor.learn.train",
     "load_run": "sensorimotor.learn.evaluate",

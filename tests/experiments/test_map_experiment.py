@@ -13,7 +13,7 @@ from sensorimotor import experiments as ex
 from sensorimotor.errors import InputError
 from sensorimotor.experiments import map as map_stage
 from sensorimotor.jobs.workers import run_jobs
-from sensorimotor.learn.runs import TrainConfig
+from sensorimotor.learn.config import TrainConfig
 from sensorimotor.learn.train import train
 from sensorimotor.report.document import to_markdown
 from sensorimotor.sim.database import generate, save_database

@@ -10,14 +10,14 @@ import warnings
 import pytest
 import torch
 
-from sensorimotor.learn.adam import FusedAdam
 from sensorimotor.learn.batches import epoch_generator
+from sensorimotor.learn.config import TrainConfig
 from sensorimotor.learn.engine import train_epoch_feedforward, train_epoch_recurrent
 from sensorimotor.learn.evaluate import load_run, model_error, split_tensors
 from sensorimotor.learn.fast import cuda_graphs
+from sensorimotor.learn.fast.adam import FusedAdam
 from sensorimotor.learn.fast.stacked import StackedEncoders, train_epoch_stacked
 from sensorimotor.learn.models import build_model
-from sensorimotor.learn.runs import TrainConfig
 from sensorimotor.learn.train import resolve_device, train_seeds
 from sensorimotor.sim.database import load_database
 

@@ -14,6 +14,7 @@ import torch
 import sensorimotor.learn.evaluate as ev
 from conftest import assert_one_line_error
 from sensorimotor.errors import InputError
+from sensorimotor.learn.config import TrainConfig
 from sensorimotor.learn.evaluate import (
     baselines,
     encode,
@@ -24,7 +25,6 @@ from sensorimotor.learn.evaluate import (
     split_tensors,
 )
 from sensorimotor.learn.models import build_model
-from sensorimotor.learn.runs import TrainConfig
 from sensorimotor.learn.train import train
 from sensorimotor.sim.core import SensorLayout
 from sensorimotor.sim.database import generate, load_database, save_database

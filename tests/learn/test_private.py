@@ -6,10 +6,10 @@ from __future__ import annotations
 import pytest
 import torch
 
-from sensorimotor.learn.adam import FusedAdam
 from sensorimotor.learn.batches import epoch_generator
 from sensorimotor.learn.engine import train_epoch_feedforward
 from sensorimotor.learn.fast import private
+from sensorimotor.learn.fast.adam import FusedAdam
 from sensorimotor.learn.fast.stacked import StackedEncoders, train_epoch_stacked
 from sensorimotor.learn.models import build_model
 

@@ -10,18 +10,19 @@ import json
 import pytest
 import torch
 
-import sensorimotor.learn.fast.stacked_engine as stacked_engine
+import sensorimotor.learn.fast.check as check
 import sensorimotor.learn.models as models_mod
 import sensorimotor.learn.train as train_mod
 from conftest import assert_one_line_error
 from sensorimotor.errors import InputError
-from sensorimotor.learn.adam import FusedAdam
 from sensorimotor.learn.batches import epoch_generator
+from sensorimotor.learn.config import TrainConfig
 from sensorimotor.learn.engine import train_epoch_feedforward
 from sensorimotor.learn.evaluate import load_run, model_error, split_tensors
+from sensorimotor.learn.fast.adam import FusedAdam
 from sensorimotor.learn.fast.stacked import StackedEncoders, train_epoch_stacked
 from sensorimotor.learn.models import KINDS, build_model
-from sensorimotor.learn.runs import TrainConfig, run_name
+from sensorimotor.learn.runs import run_name
 from sensorimotor.learn.train import train, train_runs, train_seeds
 from sensorimotor.sim.database import load_database
 
@@ -109,21 +110,21 @@ def test_stacked_epochs_agree_with_the_plain_loop_and_do_not_depend_on_the_stack
 @pytest.fixture
 def relu_edited_to_tanh(monkeypatch):
     """models.py as a user might edit it: every ReLU a Tanh (which the stack does not know)."""
-    stacked_engine.computes_models_py.cache_clear()
+    check.computes_models_py.cache_clear()
     monkeypatch.setattr(torch.nn, "ReLU", torch.nn.Tanh)
     yield
-    stacked_engine.computes_models_py.cache_clear()
+    check.computes_models_py.cache_clear()
 
 
 def test_the_stack_computes_what_models_py_computes():
-    assert all(stacked_engine.computes_models_py(kind) for kind in KINDS)
+    assert all(check.computes_models_py(kind) for kind in KINDS)
     assert train_mod.trains_stacked("sm", "cpu")
 
 
 def test_a_model_edited_in_models_py_trains_as_edited_with_autograd(
     relu_edited_to_tanh, square_db_path, tmp_path
 ):
-    assert not any(stacked_engine.computes_models_py(kind) for kind in KINDS)
+    assert not any(check.computes_models_py(kind) for kind in KINDS)
     assert not train_mod.trains_stacked("sm", "cpu")
     config = TrainConfig(model="sm", max_epochs=1)
     (result,) = train_seeds(square_db_path, tmp_path, config, seeds=[0])
@@ -139,7 +140,7 @@ def test_a_model_edited_in_models_py_trains_as_edited_with_autograd(
 
 def _clipped_relu(monkeypatch):
     """ReLU capped at 2: the layers' types pass, a fresh model on the data's range agrees."""
-    monkeypatch.setattr(stacked_engine, "_known_layers", lambda module: True)
+    monkeypatch.setattr(check, "_known_layers", lambda module: True)
     monkeypatch.setattr(torch.nn, "ReLU", lambda: torch.nn.Hardtanh(0.0, 2.0))
 
 
@@ -155,29 +156,29 @@ def _state_ignored(monkeypatch):
     ("edit", "kinds"), [(_clipped_relu, KINDS), (_state_ignored, ("rec-s", "rec-sm"))]
 )
 def test_the_check_sees_edits_that_one_fresh_step_would_not(edit, kinds, monkeypatch):
-    stacked_engine.computes_models_py.cache_clear()
+    check.computes_models_py.cache_clear()
     edit(monkeypatch)
     try:
-        assert not any(stacked_engine.computes_models_py(kind) for kind in kinds)
+        assert not any(check.computes_models_py(kind) for kind in kinds)
     finally:
-        stacked_engine.computes_models_py.cache_clear()
+        check.computes_models_py.cache_clear()
 
 
 def test_the_check_refuses_a_layer_it_does_not_know_even_where_it_agrees(monkeypatch):
     # a ReLU clipped far beyond any activation: equal numbers on every input the check tries
     monkeypatch.setattr(torch.nn, "ReLU", lambda: torch.nn.Hardtanh(0.0, 1e9))
-    stacked_engine.computes_models_py.cache_clear()
+    check.computes_models_py.cache_clear()
     try:
-        assert not stacked_engine._known_layers(build_model("sm", seed=0))
-        assert not stacked_engine.computes_models_py("sm")
+        assert not check._known_layers(build_model("sm", seed=0))
+        assert not check.computes_models_py("sm")
     finally:
-        stacked_engine.computes_models_py.cache_clear()
+        check.computes_models_py.cache_clear()
 
 
 def test_the_autograd_fallback_trains_what_the_stack_trains(square_db_path, tmp_path, monkeypatch):
     config = TrainConfig(model="sm", max_epochs=1)  # float32 drift grows over more epochs
     stacked = train(square_db_path, tmp_path / "stacked", config)
-    monkeypatch.setattr(stacked_engine, "computes_models_py", lambda model: False)
+    monkeypatch.setattr(train_mod, "computes_models_py", lambda model: False)
     plain = train(square_db_path, tmp_path / "plain", config)
     assert plain.best_val_error == pytest.approx(stacked.best_val_error, rel=1e-4)
     a, b = (load_run(r.run_dir).model.state_dict() for r in (plain, stacked))
@@ -382,8 +383,8 @@ def test_scripted_validation_stops_one_seed_and_leaves_the_other(
         return 1.0 if models.index(id(model)) == 0 else 0.5**scripted.calls
 
     scripted.calls = 0
-    for engine in ("engine", "fast.stacked_engine"):  # the validation of either engine
-        monkeypatch.setattr(f"sensorimotor.learn.{engine}.model_error", scripted)
+    # the validation of either engine
+    monkeypatch.setattr("sensorimotor.learn.engine.model_error", scripted)
     config = TrainConfig(model="s", patience=2, max_epochs=5)
     results = train_seeds(square_db_path, tmp_path / "x", config, [0, 1])
     monkeypatch.undo()

@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 import torch
 
-from sensorimotor.learn.adam import FusedAdam
+from sensorimotor.learn.config import TrainConfig
 from sensorimotor.learn.engine import train_epoch_recurrent
 from sensorimotor.learn.evaluate import model_error
+from sensorimotor.learn.fast.adam import FusedAdam
 from sensorimotor.learn.fast.stacked import StackedEncoders
 from sensorimotor.learn.fast.stacked_lstm import (
     forward_backward,
@@ -19,7 +20,7 @@ from sensorimotor.learn.fast.stacked_lstm import (
     train_epoch_stacked_recurrent,
 )
 from sensorimotor.learn.models import build_model
-from sensorimotor.learn.runs import TrainConfig, run_name
+from sensorimotor.learn.runs import run_name
 from sensorimotor.learn.train import train, train_seeds
 
 pytestmark = pytest.mark.usefixtures("one_thread")

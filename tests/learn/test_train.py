@@ -20,12 +20,13 @@ import torch
 import sensorimotor.learn.train as train_mod
 from conftest import assert_one_line_error
 from sensorimotor.errors import InputError
-from sensorimotor.learn.adam import FusedAdam
 from sensorimotor.learn.batches import stream_layout
+from sensorimotor.learn.config import TrainConfig
 from sensorimotor.learn.engine import train_epoch_recurrent
 from sensorimotor.learn.evaluate import baselines, load_run, model_error, split_tensors
+from sensorimotor.learn.fast.adam import FusedAdam
 from sensorimotor.learn.models import build_model
-from sensorimotor.learn.runs import EarlyStopping, TrainConfig
+from sensorimotor.learn.runs import EarlyStopping
 from sensorimotor.learn.train import train
 from sensorimotor.sim.database import generate, load_database, save_database
 from sensorimotor.sim.world import load_world
@@ -115,8 +116,8 @@ def test_train_stops_at_the_scripted_epoch_and_keeps_the_best_weights(tmp_path, 
         snapshots.append({k: v.clone() for k, v in model.state_dict().items()})
         return SCRIPT[len(snapshots) - 1]
 
-    for engine in ("engine", "fast.stacked_engine"):  # the validation of either engine
-        monkeypatch.setattr(f"sensorimotor.learn.{engine}.model_error", scripted)
+    # the validation of either engine
+    monkeypatch.setattr("sensorimotor.learn.engine.model_error", scripted)
     config = TrainConfig(model="s", seed=0, batch_size=64)
     result = train(db, tmp_path / "run", config)
     assert (result.epochs, result.best_epoch, result.stopped) == (13, 7, "early stopping")
@@ -432,7 +433,7 @@ def test_weights_of_another_model_or_not_finite_are_refused(square_db_path, tmp_
 
 _ONE_EPOCH = """
 import hashlib, sys, torch
-from sensorimotor.learn.adam import FusedAdam
+from sensorimotor.learn.fast.adam import FusedAdam
 from sensorimotor.learn.engine import train_epoch_recurrent
 from sensorimotor.learn.fast.cpu import keep_freed_memory
 from sensorimotor.learn.models import build_model

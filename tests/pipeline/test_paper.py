@@ -274,7 +274,7 @@ def test_a_kept_run_is_retrained_when_its_data_settings_or_model_sizes_change(
     square_db_path, tmp_path
 ):
     from sensorimotor.files import file_hash
-    from sensorimotor.learn.runs import TrainConfig
+    from sensorimotor.learn.config import TrainConfig
     from sensorimotor.learn.train import train
     from sensorimotor.pipeline.stages import run_matches
 

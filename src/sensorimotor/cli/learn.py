@@ -53,7 +53,8 @@ def train(
     settings: Annotated[list[str] | None, typer.Option("--set", help=SET_HELP)] = None,
 ) -> None:
     """Train one encoder by predicting the next reading (Adam, batch 64, early stopping)."""
-    from sensorimotor.learn.runs import TrainConfig, apply_settings
+    from sensorimotor.learn.config import TrainConfig
+    from sensorimotor.learn.runs import apply_settings
 
     _check_model(model)
     seed_list = None if seeds is None else _parse_seeds(seeds)
@@ -97,7 +98,7 @@ def _parse_seeds(text: str) -> list[int]:
 def _engine_note(model: str, device: str, single: bool) -> str:
     """How the training header says the seeds train: stacked, or each with autograd (and
     why, where ``models.py`` was edited into a model the stacked passes do not compute)."""
-    from sensorimotor.learn.fast.stacked_engine import computes_models_py
+    from sensorimotor.learn.engine import computes_models_py
     from sensorimotor.learn.train import trains_stacked
 
     if trains_stacked(model, device):

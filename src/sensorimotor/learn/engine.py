@@ -1,5 +1,5 @@
-"""What the training loop drives: an engine trains several seeds of one model through one
-epoch at a time, and the plain one, autograd through ``models.py``.
+"""What the training loop drives, and its one door to ``fast``: an engine trains several seeds
+of one model through one epoch at a time.
 
 The loop (``train.train_runs``) owns the run folders, early stopping, checkpoints and records;
 an engine owns only the arithmetic, behind four calls:
@@ -10,9 +10,15 @@ an engine owns only the arithmetic, behind four calls:
     keep(index)        -> only those seeds go on (the others stopped)
 
 and ``merge(engines)``, which joins engines whose seeds reached the same epoch (a resume
-after a kill between two seeds' checkpoints). ``AutogradEngine`` below trains each seed's
-``nn.Module`` with autograd; ``fast.stacked_engine.StackedEngine`` trains them all as one
-network with stacked weights, to float32 rounding the same numbers.
+after a kill between two seeds' checkpoints). ``AutogradEngine`` trains each seed's
+``nn.Module`` with autograd through ``models.py``; ``StackedEngine`` trains them all as one
+network with stacked weights (``fast.stacked``, ``fast.stacked_lstm``), to float32 rounding the
+same numbers, wherever ``computes_models_py`` says the stacked passes compute what
+``models.py`` computes.
+
+Nothing outside this module imports ``fast``: the loop, the pipeline and the command line
+reach its optimiser (``FusedAdam``), its check (``computes_models_py``) and its process
+settings (``flush_subnormals``, ``keep_freed_memory``) from here.
 
 Feed-forward models (S, SM) see the train split's transitions (s_t, m_t) -> s_{t+1} shuffled,
 every one once per epoch. Recurrent models see the train split cut into ``batch_size``
@@ -30,12 +36,30 @@ from typing import Protocol
 
 import torch
 
-from sensorimotor.learn.adam import FusedAdam
 from sensorimotor.learn.batches import epoch_generator, stream_layout
+from sensorimotor.learn.config import TrainConfig
 from sensorimotor.learn.evaluate import model_error
 from sensorimotor.learn.fast import cuda_graphs
+from sensorimotor.learn.fast.adam import FusedAdam
+from sensorimotor.learn.fast.check import computes_models_py
+from sensorimotor.learn.fast.cpu import flush_subnormals, keep_freed_memory
+from sensorimotor.learn.fast.stacked import StackedEncoders, train_epoch_stacked
+from sensorimotor.learn.fast.stacked_lstm import sequence_errors, train_epoch_stacked_recurrent
 from sensorimotor.learn.models import SensorimotorEncoder
-from sensorimotor.learn.runs import TrainConfig
+
+__all__ = [  # the engines, and what the loop, the pipeline and the command line take of fast
+    "AutogradEngine",
+    "Engine",
+    "FusedAdam",
+    "Member",
+    "StackedEngine",
+    "TrainData",
+    "computes_models_py",
+    "flush_subnormals",
+    "keep_freed_memory",
+    "train_epoch_feedforward",
+    "train_epoch_recurrent",
+]
 
 
 @dataclass
@@ -108,6 +132,63 @@ class AutogradEngine:
         return self.members[k].model, self.members[k].opt.state_dict()
 
     def keep(self, index: Sequence[int]) -> None:
+        self.members = [self.members[i] for i in index]
+
+
+class StackedEngine:
+    """Every seed of one model as one network with a leading seed axis: one
+    ``fast.stacked.StackedEncoders``, trained by ``fast.stacked`` (feed-forward) or
+    ``fast.stacked_lstm`` (recurrent; its kernels are CPU code). Every seed's ``nn.Module`` is
+    brought up to date after each epoch, for validation and saving."""
+
+    def __init__(
+        self,
+        members: Sequence[Member],
+        data: TrainData,
+        config: TrainConfig,
+        net: StackedEncoders | None = None,
+    ):
+        self.members, self.data, self.config = list(members), data, config
+        if net is None:
+            models, opts = [mb.model for mb in members], [mb.opt for mb in members]
+            net = StackedEncoders.from_models(models, opts, lr=config.lr)
+        self.net = net
+        self.recurrent = self.net.config.recurrent
+        if self.recurrent and data.s.dim() == 3:
+            raise ValueError("a recurrent stack trains on one database")
+
+    @classmethod
+    def merge(cls, engines: Sequence[StackedEngine]) -> StackedEngine:
+        net = StackedEncoders.concat([e.net for e in engines])
+        members = [mb for e in engines for mb in e.members]
+        return cls(members, engines[0].data, engines[0].config, net)
+
+    def train_epoch(self, epoch: int) -> list[float]:
+        c = self.config
+        if self.recurrent:
+            errors = train_epoch_stacked_recurrent(
+                self.net, self.data.s, self.data.m, c.batch_size, c.horizon
+            )
+        else:
+            seeds = [mb.seed for mb in self.members]  # each seed's own data order
+            splits = [mb.split for mb in self.members]
+            s, m = self.data.s, self.data.m
+            errors = train_epoch_stacked(self.net, s, m, seeds, epoch, c.batch_size, splits)
+        return errors.tolist()
+
+    def val_errors(self) -> list[float]:
+        for k, mb in enumerate(self.members):
+            self.net.load_into(k, mb.model)
+        if self.recurrent:  # every seed at once, as evaluate.model_error does each
+            return sequence_errors(self.net, *self.data.val[0])
+        return [model_error(mb.model, *self.data.val[mb.split]) for mb in self.members]
+
+    def snapshot(self, k: int) -> tuple[SensorimotorEncoder, dict]:
+        return self.members[k].model, self.net.optimizer_state(k)
+
+    def keep(self, index: Sequence[int]) -> None:
+        if 0 < len(index) < len(self.members):  # an empty engine is dropped, not shrunk
+            self.net.select(index)
         self.members = [self.members[i] for i in index]
 
 

@@ -1,4 +1,5 @@
-"""A training run: its configuration, its early stopping, its records, and its folder.
+"""A training run: its early stopping, its records, and its folder (its settings,
+``TrainConfig``, are in ``config``).
 
 A run folder holds ``config.json`` (model, training config, data hash, version), ``model.pt``
 (the best weights, a ``state_dict`` read with ``torch.load(weights_only=True)``),
@@ -20,7 +21,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import torch
 
@@ -35,77 +36,20 @@ from sensorimotor.files import (
     write_json_atomic,
 )
 from sensorimotor.files import write_text_atomic as _write_text
-from sensorimotor.learn.models import KINDS, REC_SM, ModelConfig
-from sensorimotor.sim import MAX_SEED
+from sensorimotor.learn.config import TrainConfig
+from sensorimotor.learn.models import ModelConfig
 from sensorimotor.sim.database import Database
 from sensorimotor.version import __version__
-
-if TYPE_CHECKING:
-    from sensorimotor.learn.adam import FusedAdam
-
 
 RUN_FILES = ("config.json", "model.pt", "checkpoint.pt", "history.csv", "result.json")
 
 
-def check_device(device: str) -> None:
-    """Refuse a device name other than auto, cpu or cuda."""
-    if device not in ("auto", "cpu", "cuda"):
-        raise InputError(f"unknown device {device!r}: use auto, cpu or cuda")
+class Optimizer(Protocol):
+    """What a checkpoint restores of an optimiser (``engine.FusedAdam``)."""
 
+    params: list[torch.Tensor]
 
-@dataclass(frozen=True)
-class TrainConfig:
-    """How one model is trained; the defaults are the paper's (section V.A)."""
-
-    model: str = REC_SM
-    """s, sm, rec-s or rec-sm."""
-    seed: int = 0
-    """Seeds the initial weights and the data order."""
-    lr: float = 1e-3
-    """Adam's learning rate."""
-    batch_size: int = 64
-    """Transitions per step (feed-forward); streams per step (recurrent)."""
-    horizon: int = 20
-    """Truncation horizon of back-propagation through time (recurrent models)."""
-    patience: int = 10
-    """Stop after this many epochs in a row without improvement."""
-    min_ratio: float = 0.95
-    """An epoch improves when its validation error is below this fraction of the best so far."""
-    max_epochs: int | None = None
-    """Cap on epochs (None: early stopping alone)."""
-    max_minutes: float | None = None
-    """Cap on training wall time, checked after each epoch (None: no cap)."""
-    device: str = "cpu"
-    """cpu or cuda."""
-    threads: int = 1
-    """Torch threads (one is fastest for these tiny models; two in one process are slower)."""
-
-    def __post_init__(self) -> None:
-        """Refuse a setting that could not train, before any run folder is written; numpy
-        numbers become Python's (config.json is JSON)."""
-        if self.model not in KINDS:
-            kinds = ", ".join(KINDS)
-            raise InputError(f"TrainConfig.model: use one of {kinds}, got {self.model!r}")
-        check_device(self.device)
-        counts = {"seed": 0, "batch_size": 1, "horizon": 1, "patience": 1, "threads": 1}
-        counts |= {} if self.max_epochs is None else {"max_epochs": 1}
-        for name, least in counts.items():
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < least:
-                raise InputError(f"TrainConfig.{name} must be an integer >= {least}, got {value!r}")
-            object.__setattr__(self, name, int(value))
-        if self.seed > MAX_SEED:
-            raise InputError(f"TrainConfig.seed must be at most {MAX_SEED}, got {self.seed}")
-        positive = {"lr": self.lr, "min_ratio": self.min_ratio}
-        positive |= {} if self.max_minutes is None else {"max_minutes": self.max_minutes}
-        for name, value in positive.items():
-            if isinstance(value, bool) or not isinstance(value, numbers.Real):
-                raise InputError(f"TrainConfig.{name} must be a number, got {value!r}")
-            if not (math.isfinite(value) and value > 0):
-                raise InputError(f"TrainConfig.{name} must be positive and finite, got {value!r}")
-            object.__setattr__(self, name, float(value))
-        if self.min_ratio > 1:
-            raise InputError(f"TrainConfig.min_ratio must be at most 1, got {self.min_ratio!r}")
+    def load_state_dict(self, state: dict) -> None: ...
 
 
 SETTABLE = ("lr", "batch_size", "horizon", "patience", "min_ratio")
@@ -417,7 +361,7 @@ def open_run_dir(out: Path, meta: dict) -> None:
 
 
 def load_checkpoint(
-    out: Path, device: str, model: torch.nn.Module, opt: FusedAdam
+    out: Path, device: str, model: torch.nn.Module, opt: Optimizer
 ) -> tuple[EarlyStopping, list[EpochRecord], int, float]:
     """Restore ``model`` and ``opt`` from ``out/checkpoint.pt``; returns (stopper, history,
     next epoch, training seconds so far). InputError naming the file if it is corrupt."""
@@ -457,7 +401,7 @@ def _checked_progress(ckpt: dict) -> tuple[EarlyStopping, list[EpochRecord], int
     return stopper, history, epoch, float(seconds)
 
 
-def _check_moments(state: dict, opt: FusedAdam) -> None:
+def _check_moments(state: dict, opt: Optimizer) -> None:
     """Adam's moments: one finite tensor per parameter, of its shape (a wrong shape would
     broadcast silently and train on nonsense)."""
     for name in ("exp_avg", "exp_avg_sq", "steps"):

@@ -3,8 +3,8 @@
 One loop trains every model, one seed or many: ``train_runs`` takes (seed, run folder) pairs,
 checks every folder before it writes any, and drives an engine through the epochs: the seeds'
 early stopping, records and checkpoints are the loop's; the arithmetic is the engine's
-(``engine.AutogradEngine``, or ``fast.stacked_engine.StackedEngine`` where it computes what
-``models.py`` does). ``train`` is the call with one seed, ``train_seeds`` names the folders of
+(``engine.AutogradEngine``, or ``engine.StackedEngine`` where it computes what ``models.py``
+does). ``train`` is the call with one seed, ``train_seeds`` names the folders of
 several. What a run folder holds is in ``runs``.
 """
 
@@ -20,18 +20,24 @@ from pathlib import Path
 import torch
 
 from sensorimotor.errors import InputError
-from sensorimotor.learn.adam import FusedAdam
-from sensorimotor.learn.engine import AutogradEngine, Engine, Member, TrainData
+from sensorimotor.learn.config import TrainConfig, check_device
+from sensorimotor.learn.engine import (
+    AutogradEngine,
+    Engine,
+    FusedAdam,
+    Member,
+    StackedEngine,
+    TrainData,
+    computes_models_py,
+    flush_subnormals,
+    keep_freed_memory,
+)
 from sensorimotor.learn.evaluate import split_tensors
-from sensorimotor.learn.fast.cpu import flush_subnormals, keep_freed_memory
-from sensorimotor.learn.fast.stacked_engine import StackedEngine, computes_models_py
 from sensorimotor.learn.models import ModelConfig, build_model
 from sensorimotor.learn.runs import (
     EarlyStopping,
     EpochRecord,
-    TrainConfig,
     TrainResult,
-    check_device,
     check_run_dir,
     finish_run,
     load_checkpoint,

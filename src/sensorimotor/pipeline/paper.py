@@ -272,7 +272,7 @@ def run_paper(rep: Reproduction, run_jobs: Callable, log: Callable[[str], None])
 
     # train --------------------------------------------------------------------------------
     with stage(rep, "train", log):
-        from sensorimotor.learn.fast.stacked_engine import computes_models_py
+        from sensorimotor.learn.engine import computes_models_py
         from sensorimotor.learn.train import trains_stacked
 
         jobs, trains, n_train = _training_jobs(rep, data_hash)

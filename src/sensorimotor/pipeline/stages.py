@@ -34,8 +34,8 @@ def data_key(world: str, steps: int) -> str:
 def run_matches(run: Path, data_sha: str, config: dict) -> bool:
     """Whether a run folder was made from this data, this training configuration and the
     model sizes ``models.py`` gives now."""
+    from sensorimotor.learn.config import TrainConfig
     from sensorimotor.learn.models import ModelConfig
-    from sensorimotor.learn.runs import TrainConfig
 
     try:
         made = json.loads((run / "config.json").read_text())
@@ -108,7 +108,7 @@ def train_and_tell(data: str | list[str], runs: list[tuple[int, str]], config: d
     """``train.train_runs`` of ``runs`` (seed, run folder) on ``data`` (one database, or one
     per run), resumed where a folder holds a checkpoint, each epoch sent as a progress line;
     the best validation error of each run by its folder's name."""
-    from sensorimotor.learn.runs import TrainConfig
+    from sensorimotor.learn.config import TrainConfig
     from sensorimotor.learn.train import train_runs
 
     names = [Path(run_dir).name for _, run_dir in runs]

@@ -60,7 +60,8 @@ from sensorimotor.files import (
     write_text_atomic,
 )
 from sensorimotor.jobs.workers import Job, JobFailure, default_workers, raise_first, send_progress
-from sensorimotor.learn.runs import SIZES, TrainConfig, model_config
+from sensorimotor.learn.config import TrainConfig
+from sensorimotor.learn.runs import SIZES, model_config
 
 SEARCHES = ("grid", "random")
 SEARCHABLE = ("data", "model", "seed", "lr", "batch_size", "horizon", "patience", "min_ratio")

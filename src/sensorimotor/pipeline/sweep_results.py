@@ -14,8 +14,9 @@ import math
 import shlex
 from pathlib import Path
 
+from sensorimotor.learn.config import TrainConfig
 from sensorimotor.learn.models import ModelConfig
-from sensorimotor.learn.runs import SETTABLE, TrainConfig
+from sensorimotor.learn.runs import SETTABLE
 
 COLUMNS = ("best_val_error", "best_epoch", "epochs", "stopped")
 

@@ -26,7 +26,7 @@ its stack (every operation treats the seeds independently; tests check it bit fo
 Each product runs in the orientation the BLAS is fast at (``matmul``, ``linear``,
 ``weight_grad``): one with fewer than 16 columns, (64, 128) x (128, 10) say, runs as its
 transpose (see ``products``). So a seed's numbers agree with its ``nn.Module`` trained alone with
-autograd (``autograd.train_epoch_feedforward``) to float32 rounding, not bit for bit, while they
+autograd (``engine.train_epoch_feedforward``) to float32 rounding, not bit for bit, while they
 stay bit for bit the same in a stack of K as alone (tests check both).
 """
 
@@ -36,9 +36,9 @@ from collections.abc import Sequence
 
 import torch
 
-from sensorimotor.learn.adam import FusedAdam
 from sensorimotor.learn.batches import epoch_orders
 from sensorimotor.learn.fast import cuda_graphs
+from sensorimotor.learn.fast.adam import FusedAdam
 from sensorimotor.learn.fast.private import adam_, relu_grad_
 from sensorimotor.learn.fast.products import ALIGN_ROWS, linear, matmul, weight_grad
 from sensorimotor.learn.models import ModelConfig, SensorimotorEncoder

@@ -1,81 +1,17 @@
-"""The stacked seeds as an engine of the training loop, and the check that lets them in.
-
-``StackedEngine`` trains its seeds as one ``stacked.StackedEncoders`` (feed-forward) or
-through ``stacked_lstm`` (recurrent); ``train.train_runs`` uses it wherever it computes what
-``models.py`` computes (``computes_models_py``) and the device allows (the stacked LSTM's
-kernels are CPU code). Every seed's nn.Module is brought up to date after each epoch, for
-validation and saving.
+"""The check that lets the stacked passes train a model: they compute what ``models.py``
+computes (``computes_models_py``). ``engine.StackedEngine`` trains with them only where it holds;
+elsewhere ``engine.AutogradEngine`` trains the ``nn.Module`` itself.
 """
 
 from __future__ import annotations
 
 import functools
-from collections.abc import Sequence
 
 import torch
 
-from sensorimotor.learn.engine import Member, TrainData
-from sensorimotor.learn.evaluate import model_error
-from sensorimotor.learn.fast.stacked import StackedEncoders, train_epoch_stacked
+from sensorimotor.learn.fast.stacked import StackedEncoders
 from sensorimotor.learn.fast.stacked_lstm import forward_backward as recurrent_forward_backward
-from sensorimotor.learn.fast.stacked_lstm import sequence_errors, train_epoch_stacked_recurrent
 from sensorimotor.learn.models import SensorimotorEncoder, build_model
-from sensorimotor.learn.runs import TrainConfig
-
-
-class StackedEngine:
-    """Every seed of one model as one network with a leading seed axis (``StackedEncoders``)."""
-
-    def __init__(
-        self,
-        members: Sequence[Member],
-        data: TrainData,
-        config: TrainConfig,
-        net: StackedEncoders | None = None,
-    ):
-        self.members, self.data, self.config = list(members), data, config
-        if net is None:
-            models, opts = [mb.model for mb in members], [mb.opt for mb in members]
-            net = StackedEncoders.from_models(models, opts, lr=config.lr)
-        self.net = net
-        self.recurrent = self.net.config.recurrent
-        if self.recurrent and data.s.dim() == 3:
-            raise ValueError("a recurrent stack trains on one database")
-
-    @classmethod
-    def merge(cls, engines: Sequence[StackedEngine]) -> StackedEngine:
-        net = StackedEncoders.concat([e.net for e in engines])
-        members = [mb for e in engines for mb in e.members]
-        return cls(members, engines[0].data, engines[0].config, net)
-
-    def train_epoch(self, epoch: int) -> list[float]:
-        c = self.config
-        if self.recurrent:
-            errors = train_epoch_stacked_recurrent(
-                self.net, self.data.s, self.data.m, c.batch_size, c.horizon
-            )
-        else:
-            seeds = [mb.seed for mb in self.members]  # each seed's own data order
-            splits = [mb.split for mb in self.members]
-            s, m = self.data.s, self.data.m
-            errors = train_epoch_stacked(self.net, s, m, seeds, epoch, c.batch_size, splits)
-        return errors.tolist()
-
-    def val_errors(self) -> list[float]:
-        for k, mb in enumerate(self.members):
-            self.net.load_into(k, mb.model)
-        if self.recurrent:  # every seed at once, as evaluate.model_error does each
-            return sequence_errors(self.net, *self.data.val[0])
-        return [model_error(mb.model, *self.data.val[mb.split]) for mb in self.members]
-
-    def snapshot(self, k: int) -> tuple[SensorimotorEncoder, dict]:
-        return self.members[k].model, self.net.optimizer_state(k)
-
-    def keep(self, index: Sequence[int]) -> None:
-        if 0 < len(index) < len(self.members):  # an empty engine is dropped, not shrunk
-            self.net.select(index)
-        self.members = [self.members[i] for i in index]
-
 
 _KNOWN_LAYERS = (torch.nn.Sequential, torch.nn.Linear, torch.nn.ReLU, torch.nn.LSTM)
 

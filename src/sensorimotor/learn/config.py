@@ -1,0 +1,73 @@
+"""How one model is trained: ``TrainConfig``, the settings of a run (the paper's by default),
+each checked when it is made."""
+
+from __future__ import annotations
+
+import math
+import numbers
+from dataclasses import dataclass
+
+from sensorimotor.errors import InputError
+from sensorimotor.learn.models import KINDS, REC_SM
+from sensorimotor.sim import MAX_SEED
+
+
+def check_device(device: str) -> None:
+    """Refuse a device name other than auto, cpu or cuda."""
+    if device not in ("auto", "cpu", "cuda"):
+        raise InputError(f"unknown device {device!r}: use auto, cpu or cuda")
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """How one model is trained; the defaults are the paper's (section V.A)."""
+
+    model: str = REC_SM
+    """s, sm, rec-s or rec-sm."""
+    seed: int = 0
+    """Seeds the initial weights and the data order."""
+    lr: float = 1e-3
+    """Adam's learning rate."""
+    batch_size: int = 64
+    """Transitions per step (feed-forward); streams per step (recurrent)."""
+    horizon: int = 20
+    """Truncation horizon of back-propagation through time (recurrent models)."""
+    patience: int = 10
+    """Stop after this many epochs in a row without improvement."""
+    min_ratio: float = 0.95
+    """An epoch improves when its validation error is below this fraction of the best so far."""
+    max_epochs: int | None = None
+    """Cap on epochs (None: early stopping alone)."""
+    max_minutes: float | None = None
+    """Cap on training wall time, checked after each epoch (None: no cap)."""
+    device: str = "cpu"
+    """cpu or cuda."""
+    threads: int = 1
+    """Torch threads (one is fastest for these tiny models; two in one process are slower)."""
+
+    def __post_init__(self) -> None:
+        """Refuse a setting that could not train, before any run folder is written; numpy
+        numbers become Python's (config.json is JSON)."""
+        if self.model not in KINDS:
+            kinds = ", ".join(KINDS)
+            raise InputError(f"TrainConfig.model: use one of {kinds}, got {self.model!r}")
+        check_device(self.device)
+        counts = {"seed": 0, "batch_size": 1, "horizon": 1, "patience": 1, "threads": 1}
+        counts |= {} if self.max_epochs is None else {"max_epochs": 1}
+        for name, least in counts.items():
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < least:
+                raise InputError(f"TrainConfig.{name} must be an integer >= {least}, got {value!r}")
+            object.__setattr__(self, name, int(value))
+        if self.seed > MAX_SEED:
+            raise InputError(f"TrainConfig.seed must be at most {MAX_SEED}, got {self.seed}")
+        positive = {"lr": self.lr, "min_ratio": self.min_ratio}
+        positive |= {} if self.max_minutes is None else {"max_minutes": self.max_minutes}
+        for name, value in positive.items():
+            if isinstance(value, bool) or not isinstance(value, numbers.Real):
+                raise InputError(f"TrainConfig.{name} must be a number, got {value!r}")
+            if not (math.isfinite(value) and value > 0):
+                raise InputError(f"TrainConfig.{name} must be positive and finite, got {value!r}")
+            object.__setattr__(self, name, float(value))
+        if self.min_ratio > 1:
+            raise InputError(f"TrainConfig.min_ratio must be at most 1, got {self.min_ratio!r}")
