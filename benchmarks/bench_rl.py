@@ -30,8 +30,8 @@ from rich.console import Console
 from rich.table import Table
 from stable_baselines3 import PPO
 
-from sensorimotor.envs import TASK_IDS
-from sensorimotor.rl.features import FEATURES, load_encoder
+from sensorimotor.envs import TASKS
+from sensorimotor.rl.features import feature_sets, load_encoder
 from sensorimotor.rl.runner import RLConfig, make_env
 from sensorimotor.version import __version__
 
@@ -39,7 +39,7 @@ RUNS = Path(__file__).resolve().parent.parent / "docs" / "results" / "runs"
 
 
 def plain_env_speed(steps: int) -> float:
-    env = gym.make(TASK_IDS["corner"], world="rooms1")
+    env = gym.make(TASKS["corner"].env_id, world="rooms1")
     env.reset(seed=0)
     actions = np.random.default_rng(0).uniform(-1, 1, (steps, 2)).astype(np.float32)
     t0 = time.process_time()
@@ -52,7 +52,7 @@ def plain_env_speed(steps: int) -> float:
 
 def feature_env_speed(features: str, steps: int, n: int, batched: bool) -> float:
     encoder, _ = load_encoder(features, RUNS, "rooms1", 0)
-    venv = make_env(RLConfig(), "rooms1", features, encoder, n, 0, batched)
+    venv = make_env(RLConfig(runs=str(RUNS)), "rooms1", features, encoder, n, 0, batched)
     venv.reset()
     actions = np.random.default_rng(0).uniform(-1, 1, (steps // n, n, 2)).astype(np.float32)
     t0 = time.process_time()
@@ -62,7 +62,7 @@ def feature_env_speed(features: str, steps: int, n: int, batched: bool) -> float
 
 
 def ppo_speed(features: str, steps: int, batched: bool = True) -> float:
-    config = RLConfig()
+    config = RLConfig(runs=str(RUNS))
     encoder, _ = load_encoder(features, RUNS, "rooms1", 0)
     venv = make_env(config, "rooms1", features, encoder, config.n_envs, 0, batched)
     model = PPO("MlpPolicy", venv, seed=0, device="cpu", **config.ppo)
@@ -86,7 +86,7 @@ def main() -> None:
     for col in ("features", "one by one", "ratio", "batched", "ratio to the plain env"):
         table.add_column(col, justify="right")
     table.add_row("plain env (no features, 1 env)", f"{plain:,.0f}", "1.00", "", "")
-    for f in FEATURES:
+    for f in feature_sets():
         alone = feature_env_speed(f, args.steps, args.envs, batched=False)
         together = feature_env_speed(f, args.steps, args.envs, batched=True)
         table.add_row(
@@ -102,7 +102,7 @@ def main() -> None:
     for col in ("features", "steps/s", "ratio to raw"):
         table.add_column(col, justify="right")
     raw = ppo_speed("raw", args.ppo_steps)
-    for f in FEATURES:
+    for f in feature_sets():
         speed = raw if f == "raw" else ppo_speed(f, args.ppo_steps)
         table.add_row(f, f"{speed:,.0f}", f"{speed / raw:.2f}")
     slow = ppo_speed("raw", args.ppo_steps, batched=False)

@@ -331,19 +331,20 @@ def test_a_start_pose_is_checked_against_the_worlds_own_width_and_height():
 
 
 # --- the tasks (envs/tasks.py) -------------------------------------------------------------
-from sensorimotor.envs import TASK_IDS, LaserTaskEnv  # noqa: E402
+from sensorimotor.envs import TASKS, LaserTaskEnv  # noqa: E402
 from sensorimotor.envs.laser_world import MAX_TURN  # noqa: E402
-from sensorimotor.envs.tasks import BUDGETS, EXPLORE_SUCCESS, GRID  # noqa: E402
+from sensorimotor.envs.tasks import EXPLORE_SUCCESS, GRID, at_corner  # noqa: E402
 
 STILL = np.array([-1.0, 0.0], dtype=np.float32)  # d = 0, r = 0
 
 
-@pytest.mark.parametrize("task", TASK_IDS)
+@pytest.mark.parametrize("task", list(TASKS))
 def test_tasks_pass_the_checker_without_a_warning(task):
     """The [-1, 1] action box: check_env has nothing to say (pytest turns warnings to errors)."""
-    env = gym.make(TASK_IDS[task], world="rooms1")
+    env = gym.make(TASKS[task].env_id, world="rooms1")
     check_env(env.unwrapped)
-    assert env.spec.max_episode_steps == BUDGETS[task]
+    assert env.spec.max_episode_steps == TASKS[task].budget
+    assert env.unwrapped.task is TASKS[task]
     assert env.action_space == gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
 
 
@@ -405,7 +406,7 @@ def test_corner_starts_are_redrawn_where_the_task_is_done():
     for seed in range(200):
         _, info = env.reset(seed=seed)
         assert not info["is_success"]
-        assert not env._at_corner()
+        assert not at_corner(env, np.array([env.pose]))[0]
 
 
 def test_doorway_succeeds_through_the_opening_not_through_the_wall():

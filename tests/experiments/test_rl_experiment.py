@@ -30,8 +30,8 @@ def fake_rep(out: Path, worlds=("rooms1",), seeds: int = 1) -> SimpleNamespace:
 
 @pytest.fixture
 def tiny(monkeypatch):
-    monkeypatch.setattr(rl_stage, "TASKS", ("corner",))
-    monkeypatch.setattr(rl_stage, "FEATURES", ("raw", "sm"))
+    monkeypatch.setattr(rl_stage, "tasks", lambda: ("corner",))
+    monkeypatch.setattr(rl_stage, "features", lambda: ("raw", "sm"))
     plan = rl_stage.Plan(512, 512, 2, {"n_steps": 64, "batch_size": 64, "n_epochs": 1})
     monkeypatch.setitem(rl_stage.PLANS, "smoke", plan)
 
@@ -79,9 +79,20 @@ def test_a_task_that_the_common_budget_teaches_nothing_gets_its_own(monkeypatch)
 
 
 def test_doorway_is_not_sent_to_a_world_without_two_rooms(tiny, monkeypatch):
-    monkeypatch.setattr(rl_stage, "TASKS", ("doorway",))
+    monkeypatch.setattr(rl_stage, "tasks", lambda: ("doorway",))
     (config,) = rl_stage.configs(fake_rep(Path("/nowhere"))).values()
     assert config.transfer == ("rooms2",)
+
+
+def test_the_grid_reads_its_tasks_features_and_encoders_from_the_registries(monkeypatch):
+    from sensorimotor.learn.models import KINDS, Kind
+
+    assert rl_stage.tasks() == ("corner", "doorway", "explore")
+    assert rl_stage.features() == ("pose", "raw", "s", "sm", "rec-s", "rec-sm", "random")
+    assert rl_stage.encoders() == ("s", "sm", "rec-s", "rec-sm")
+    monkeypatch.setitem(KINDS, "toy", Kind("toy", "Toy-encoder", "Toy", False, True))
+    assert rl_stage.encoders()[-1] == "toy"
+    assert "toy" in rl_stage.features()
 
 
 def test_a_reproduction_without_rooms1_or_a_run_is_refused_in_one_line(tmp_path):

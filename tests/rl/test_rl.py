@@ -19,13 +19,14 @@ pytest.importorskip("stable_baselines3")
 from stable_baselines3.common.vec_env import DummyVecEnv
 
 from conftest import assert_one_line_error
-from sensorimotor.envs import TASK_IDS
+from sensorimotor.envs import TASKS
 from sensorimotor.errors import InputError
-from sensorimotor.rl import check_extra
+from sensorimotor.rl import RUNS_ENV, check_extra
 from sensorimotor.rl.features import (
-    FEATURES,
     FeatureVecEnv,
+    feature_sets,
     load_encoder,
+    needs_runs,
     parse_features,
 )
 from sensorimotor.rl.results import bootstrap_ci, iqm, summary, verdicts
@@ -40,14 +41,14 @@ TINY_PPO = {"n_steps": 32, "batch_size": 64, "n_epochs": 1, "learning_rate": 3e-
 def corner_envs(limits: list[int], world: str = "rooms1") -> DummyVecEnv:
     """Corner task environments truncated after ``limits[i]`` steps, seeded 0, 1, ..."""
     makers = [
-        partial(gym.make, TASK_IDS["corner"], world=world, max_episode_steps=n) for n in limits
+        partial(gym.make, TASKS["corner"].env_id, world=world, max_episode_steps=n) for n in limits
     ]
     venv = DummyVecEnv(makers)
     venv.seed(0)
     return venv
 
 
-@pytest.mark.parametrize("features", FEATURES)
+@pytest.mark.parametrize("features", list(feature_sets()))
 def test_each_feature_set_has_its_shape_for_every_environment(features):
     encoder, run = load_encoder(features, RUNS, "rooms1", 0)
     assert (run is None) == (features in ("pose", "raw", "random"))
@@ -108,7 +109,7 @@ def test_evaluation_counts_each_episode_once_and_plays_the_same_starts():
     assert evaluate(Ahead(), venv, 7) == got
     successes, returns = [], []
     for i, episodes in enumerate([3, 2, 2]):  # 7 episodes shared among 3 environments
-        env = gym.make(TASK_IDS["corner"], world="rooms1", max_episode_steps=4)
+        env = gym.make(TASKS["corner"].env_id, world="rooms1", max_episode_steps=4)
         env.reset(seed=EVAL_SEED + i)
         for e in range(episodes):
             if e:
@@ -204,6 +205,38 @@ def test_inputs_are_checked_before_any_agent_trains(tmp_path):
     with pytest.raises(InputError, match="unknown features nope"):
         parse_features("raw,nope")
     assert parse_features("raw, pose,raw") == ["raw", "pose"]
+
+
+def test_a_registered_kind_is_a_feature_set_and_gets_a_colour(monkeypatch):
+    from sensorimotor.learn.models import KINDS, Kind
+    from sensorimotor.rl.plots import COLORS, colors
+
+    monkeypatch.setitem(KINDS, "toy", Kind("toy", "Toy-encoder", "Toy", False, True))
+    sets = feature_sets()
+    assert list(sets) == ["pose", "raw", "s", "sm", "rec-s", "rec-sm", "toy", "random"]
+    assert (sets["toy"].kind, sets["toy"].trained, sets["toy"].size) == ("toy", True, None)
+    assert (sets["pose"].size, sets["raw"].size, sets["random"].trained) == (4, 5, False)
+    assert parse_features("toy,raw") == ["toy", "raw"]
+    assert needs_runs(["pose", "toy", "random", "rec-s"]) == ["toy", "rec-s"]
+    palette = colors(["pose", "toy", "other"])
+    assert palette["pose"] == COLORS["pose"]
+    assert len({palette["pose"], palette["toy"], palette["other"]}) == 3
+    with pytest.raises(InputError, match="--runs"):
+        load_encoder("toy", None, "rooms1", 0)
+
+
+def test_trained_features_need_a_runs_folder_there_is_no_default(cli, tmp_path, monkeypatch):
+    assert RLConfig().runs is None  # nothing points into the repository
+    with pytest.raises(InputError, match=f"give --runs DIR .* or set {RUNS_ENV}"):
+        run_grid(tiny_config(runs=None), tmp_path / "a")
+    assert not (tmp_path / "a").exists()
+    run_grid(tiny_config(runs=None, features=("raw",), steps=32, eval_every=32), tmp_path / "b")
+    monkeypatch.delenv(RUNS_ENV, raising=False)
+    proc = cli("rl", "corner", "--features", "raw,rec-sm", "--out", tmp_path / "c")
+    assert_one_line_error(proc, "features rec-sm", "--runs", RUNS_ENV)
+    monkeypatch.setenv(RUNS_ENV, str(tmp_path / "nowhere"))  # the variable stands for --runs
+    proc = cli("rl", "corner", "--features", "rec-sm", "--out", tmp_path / "c")
+    assert_one_line_error(proc, "nowhere")
 
 
 def test_a_missing_extra_is_one_clear_line(monkeypatch):

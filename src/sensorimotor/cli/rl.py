@@ -10,6 +10,7 @@ import typer
 from sensorimotor.cli.app import app, err_console, progress_bar
 from sensorimotor.cli.reproduce import AddressOpt, BackendOpt
 from sensorimotor.jobs.backend import check_backend, job_runner, run_all
+from sensorimotor.rl import RUNS_ENV
 
 
 @app.command()
@@ -22,7 +23,14 @@ def rl(
     seeds: Annotated[int, typer.Option(min=1, help="Agents per feature set: seeds 0..N-1.")] = 3,
     steps: Annotated[int, typer.Option(min=1, help="Environment steps per agent.")] = 100_000,
     out: Annotated[Path, typer.Option(help="Output folder; run again to go on.")] = Path("rl"),
-    runs: Annotated[Path, typer.Option(help="Trained encoders.")] = Path("docs/results/runs"),
+    runs: Annotated[
+        Path | None,
+        typer.Option(
+            help="Folder of trained encoder runs ({world}__{kind}__s{seed}, as `reproduce` "
+            "writes in OUT/runs); needed by s, sm, rec-s, rec-sm, no default.",
+            envvar=RUNS_ENV,
+        ),
+    ] = None,
     trained_on: Annotated[str | None, typer.Option(help="Encoders' world [WORLD].")] = None,
     transfer: Annotated[str, typer.Option(help="Comma-separated worlds to test in.")] = "",
     eval_every: Annotated[int, typer.Option(min=1, help="Steps between evaluations.")] = 5_000,
@@ -44,8 +52,9 @@ def rl(
 
     names = parse_features(features)
     worlds = tuple(w.strip() for w in transfer.split(",") if w.strip())
-    config = RLConfig(task, world, tuple(names), seeds, steps, str(runs), trained_on, worlds,
-                      eval_every, eval_episodes)  # fmt: skip
+    config = RLConfig(task, world, tuple(names), seeds, steps,
+                      None if runs is None else str(runs), trained_on,
+                      worlds, eval_every, eval_episodes)  # fmt: skip
     check_inputs(config)  # before the progress bar: an error is one line
     check_backend(backend, address, workers)
     if backend == "ray" or (workers or 1) > 1:  # agents as jobs: worker processes, Ray tasks

@@ -5,6 +5,9 @@
 >>> env = gym.make("sensorimotor/LaserWorld-v0", world="rooms1")
 >>> task = gym.make("sensorimotor/LaserCorner-v0", world="rooms1")  # also Doorway, Explore
 
+Each task of ``tasks.TASKS`` has its id (``Task.env_id``), registered with it
+(``tasks.register``).
+
 ``gym.make("sensorimotor.envs:sensorimotor/LaserWorld-v0")`` imports this module itself.
 """
 
@@ -13,7 +16,7 @@ from __future__ import annotations
 import gymnasium as gym
 
 from sensorimotor.envs.laser_world import LaserWorldEnv, paper_policy
-from sensorimotor.envs.tasks import BUDGETS, TASKS, LaserTaskEnv
+from sensorimotor.envs.tasks import TASKS, LaserTaskEnv, Task, register
 
 LASER_WORLD_ID = "sensorimotor/LaserWorld-v0"
 
@@ -24,15 +27,6 @@ if LASER_WORLD_ID not in gym.registry:  # importlib.reload must not re-register 
         max_episode_steps=10_000,
     )
 
-# the tasks: one id each, truncated after the task's step budget (see LaserTaskEnv)
-TASK_IDS = {task: f"sensorimotor/Laser{task.capitalize()}-v0" for task in TASKS}
-for _task, _id in TASK_IDS.items():
-    if _id not in gym.registry:
-        gym.register(
-            id=_id,
-            entry_point="sensorimotor.envs.tasks:LaserTaskEnv",
-            max_episode_steps=BUDGETS[_task],
-            kwargs={"task": _task},
-        )
-
-__all__ = ["LASER_WORLD_ID", "TASK_IDS", "LaserTaskEnv", "LaserWorldEnv", "paper_policy"]
+__all__ = [
+    "LASER_WORLD_ID", "TASKS", "LaserTaskEnv", "LaserWorldEnv", "Task", "paper_policy", "register",
+]  # fmt: skip

@@ -1,10 +1,19 @@
-"""Three navigation tasks for the laser robot, to ask whether a representation helps it act."""
+"""Navigation tasks for the laser robot, to ask whether a representation helps it act.
+
+A task is one ``Task`` object (name, step budget, start rule, reward, success test) in one
+registry, ``TASKS``; ``register`` adds one, with its Gymnasium id. ``LaserTaskEnv`` (one robot)
+and ``rl.vec_env.TaskVecEnv`` (N robots at once) read the object and score every move through
+one function, ``task_step``.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
 
+import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
@@ -14,14 +23,190 @@ from sensorimotor.sim import core as sim
 from sensorimotor.sim.events import corner_in_view, corner_points
 from sensorimotor.sim.world import World, point_in_polygon
 
-TASKS = ("corner", "doorway", "explore")
-BUDGETS = {"corner": 200, "doorway": 300, "explore": 400}  # steps before truncation
 CORNER_REACH = 2.0  # units; a corner counts as reached within this distance, in view
 CORNER_PROGRESS = 0.05  # reward per unit of progress toward the nearest corner
-GRID = 10  # explore: the world is cut into GRID x GRID cells
+GRID = 10  # the world is cut into GRID x GRID cells (explore's reward, info["coverage"])
 CELL_REWARD = 0.1  # explore: reward per newly visited cell
 EXPLORE_SUCCESS = 0.4  # explore: success when at least this fraction of the cells is visited
 MAX_START_DRAWS = 1000  # start poses drawn before giving up on a world where the task is done
+
+
+@dataclass
+class Episodes:
+    """N episodes of one task under way, as a task's functions read and write them: the scalar
+    ``LaserTaskEnv`` passes N = 1, ``rl.vec_env.TaskVecEnv`` its N environments."""
+
+    poses: np.ndarray
+    """(N, 3) x, y, heading, just after the move being scored."""
+    before: np.ndarray | None
+    """(N,) what the task's ``measure`` gave just before the move (None: it has none)."""
+    start_room: np.ndarray
+    """(N,) index in ``world.rooms`` of the room each episode started in, -1 for none."""
+    visited: np.ndarray
+    """(N, GRID, GRID) the grid cells entered this episode (a reward may mark them)."""
+
+
+def _anywhere(env: LaserTaskEnv) -> bool:
+    return True
+
+
+def _any_world(world: World) -> str | None:
+    return None
+
+
+@dataclass(frozen=True)
+class Task:
+    """One task: everything ``LaserTaskEnv`` and ``TaskVecEnv`` know of it. Its functions take
+    the task's environment (``LaserTaskEnv``: the world, its corners, the sensor layout)."""
+
+    name: str
+    """In commands, Gymnasium ids (``env_id``) and output folders."""
+    budget: int
+    """Steps per episode before truncation (``TimeLimit``'s ``max_episode_steps``)."""
+    reward: Callable[[LaserTaskEnv, Episodes], np.ndarray]
+    """(N,) the reward of each episode's move, the success bonus aside; may update the
+    episodes' state (explore marks the cells entered)."""
+    success: Callable[[LaserTaskEnv, Episodes], np.ndarray]
+    """(N,) bool: the task done so far, read after ``reward``."""
+    success_reward: float = 1.0
+    """Added to the reward of a move after which ``success`` holds."""
+    terminates: bool = True
+    """Success ends the episode."""
+    good_start: Callable[[LaserTaskEnv], bool] = _anywhere
+    """Whether an episode may start at ``env.pose``; ``reset`` redraws the pose until it may."""
+    measure: Callable[[LaserTaskEnv, np.ndarray], np.ndarray] | None = None
+    """(N,) a quantity of the poses (N, 3) taken before each move, ``Episodes.before``."""
+    check: Callable[[World], str | None] = _any_world
+    """Why a world cannot hold the task (completes "task NAME ..."), None when it can."""
+
+    @property
+    def env_id(self) -> str:
+        """Its Gymnasium id, e.g. ``sensorimotor/LaserCorner-v0``."""
+        return f"sensorimotor/Laser{self.name.capitalize()}-v0"
+
+
+TASKS: dict[str, Task] = {}
+"""Every task by name; add one with ``register``."""
+
+
+def register(task: Task) -> Task:
+    """Add ``task`` to ``TASKS`` and its ``env_id`` to Gymnasium's registry (truncated after its
+    budget): from here on ``LaserTaskEnv``, ``TaskVecEnv``, ``gym.make`` and ``sensorimotor rl``
+    take its name."""
+    if task.name in TASKS:
+        raise ValueError(f"task {task.name!r} is already taken")
+    TASKS[task.name] = task
+    if task.env_id not in gym.registry:  # importlib.reload must not re-register (a warning)
+        gym.register(
+            id=task.env_id,
+            entry_point="sensorimotor.envs.tasks:LaserTaskEnv",
+            max_episode_steps=task.budget,
+            kwargs={"task": task.name},
+        )
+    return task
+
+
+def unregister(name: str) -> None:
+    """Remove a task ``register`` added, with its Gymnasium id (a test's toy task)."""
+    task = TASKS.pop(name)
+    gym.registry.pop(task.env_id, None)
+
+
+def get_task(task: str | Task) -> Task:
+    """The registered task of that name (InputError naming the known ones), or ``task``."""
+    if isinstance(task, Task):
+        return task
+    if task not in TASKS:
+        raise InputError(f"unknown task {task!r}: use one of {', '.join(TASKS)}")
+    return TASKS[task]
+
+
+# --- the three tasks ---------------------------------------------------------------------------
+def corner_distances(corners: np.ndarray, poses: np.ndarray) -> np.ndarray:
+    """(N,) distance from each pose (N, 3) to its nearest corner (C, 2)."""
+    dx = corners[None, :, 0] - poses[:, 0, None]  # (N, C)
+    dy = corners[None, :, 1] - poses[:, 1, None]
+    return np.hypot(dx, dy).min(axis=1)
+
+
+def grid_cells(world: World, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The grid's cell (i, j), (N,) each, of each pose (N, 3)."""
+    i = np.clip((poses[:, 0] / world.width * GRID).astype(int), 0, GRID - 1)
+    j = np.clip((poses[:, 1] / world.height * GRID).astype(int), 0, GRID - 1)
+    return i, j
+
+
+def at_corner(env: LaserTaskEnv, poses: np.ndarray) -> np.ndarray:
+    """(N,) bool: within ``CORNER_REACH`` of a corner, facing it (``corner_in_view``)."""
+    done = np.zeros(len(poses), dtype=bool)
+    near = np.flatnonzero(corner_distances(env.corners, poses) <= CORNER_REACH)  # no ray cast
+    if near.size:
+        done[near[corner_in_view(env.world, poses[near], env.reach_layout)]] = True
+    return done
+
+
+def _corner_distance(env: LaserTaskEnv, poses: np.ndarray) -> np.ndarray:
+    return corner_distances(env.corners, poses)
+
+
+def _corner_progress(env: LaserTaskEnv, e: Episodes) -> np.ndarray:
+    return CORNER_PROGRESS * (e.before - corner_distances(env.corners, e.poses))
+
+
+def _corner_done(env: LaserTaskEnv, e: Episodes) -> np.ndarray:
+    return at_corner(env, e.poses)
+
+
+def _not_at_corner(env: LaserTaskEnv) -> bool:
+    return not at_corner(env, np.array([env.pose]))[0]
+
+
+def _no_reward(env: LaserTaskEnv, e: Episodes) -> np.ndarray:
+    return np.zeros(len(e.poses))
+
+
+def _in_another_room(env: LaserTaskEnv, e: Episodes) -> np.ndarray:
+    x, y = e.poses[:, 0], e.poses[:, 1]
+    room = env.world.room_index(x, y)  # (N,)
+    done = np.zeros(len(e.poses), dtype=bool)
+    for k in np.unique(e.start_room):
+        mine = np.flatnonzero(e.start_room == k)
+        still = point_in_polygon(env.world.rooms[k].polygon, x[mine], y[mine])
+        done[mine] = ~still & (room[mine] >= 0)  # in another named room
+    return done
+
+
+def _in_a_room(env: LaserTaskEnv) -> bool:
+    return env._room() >= 0
+
+
+def _two_rooms(world: World) -> str | None:
+    n = len(world.rooms)
+    if n >= 2:
+        return None
+    return f"needs a world with at least two named rooms; world {world.name!r} names {n}"
+
+
+def _new_cells(env: LaserTaskEnv, e: Episodes) -> np.ndarray:
+    i, j = grid_cells(env.world, e.poses)
+    rows = np.arange(len(e.poses))
+    new = ~e.visited[rows, i, j]
+    e.visited[rows, i, j] = True
+    return np.where(new, CELL_REWARD, 0.0)
+
+
+def _covered(env: LaserTaskEnv, e: Episodes) -> np.ndarray:
+    return e.visited.mean(axis=(1, 2)) >= EXPLORE_SUCCESS
+
+
+CORNER = register(
+    Task("corner", 200, _corner_progress, _corner_done, good_start=_not_at_corner,
+         measure=_corner_distance)
+)  # fmt: skip
+DOORWAY = register(
+    Task("doorway", 300, _no_reward, _in_another_room, good_start=_in_a_room, check=_two_rooms)
+)
+EXPLORE = register(Task("explore", 400, _new_cells, _covered, success_reward=0.0, terminates=False))
 
 
 class LaserTaskEnv(LaserWorldEnv):
@@ -29,8 +214,9 @@ class LaserTaskEnv(LaserWorldEnv):
     ## Description
 
     The laser robot of ``LaserWorld-v0`` (same worlds, sensors, physics and collisions: this
-    class only adds a task on top) given one of three tasks, to measure whether a learned
-    representation helps an agent act (the paper's conclusion):
+    class only adds a task on top) given a task, to measure whether a learned representation
+    helps an agent act (the paper's conclusion). A task is a ``Task`` of the registry ``TASKS``
+    (its start rule, reward, success test and budget); three are registered:
 
     - ``corner``: reach any corner where two walls meet (``sim.events.corner_points``): be
       within 2 units of it, facing it: ``sim.events.corner_in_view`` with a 2-unit range, so the
@@ -39,6 +225,8 @@ class LaserTaskEnv(LaserWorldEnv):
       Needs a world that names at least two rooms (``rooms1``, ``rooms2`` do; ``square`` names
       one).
     - ``explore``: visit as many cells as possible of a 10 x 10 grid laid over the world.
+
+    ``register(Task(...))`` adds another, with its own Gymnasium id (``Task.env_id``).
 
     ## Action Space
 
@@ -60,6 +248,9 @@ class LaserTaskEnv(LaserWorldEnv):
 
     ## Rewards
 
+    A step's reward is the task's ``reward`` plus its ``success_reward`` when the task is done
+    after the step (``task_step``):
+
     - ``corner``: ``+1`` on reaching a corner, plus ``0.05`` per unit of progress toward the
       nearest corner (``0.05 (dist_before - dist_after)``, negative when moving away).
     - ``doorway``: ``+1`` on entering another room, 0 otherwise.
@@ -68,22 +259,25 @@ class LaserTaskEnv(LaserWorldEnv):
 
     ## Starting State
 
-    A pose drawn as in ``LaserWorld-v0`` (``sim.sample_start``); ``corner`` redraws it while the
-    task is already done there, ``doorway`` while it lies in no named room.
-    ``reset(options={"pose": ...})`` starts at a given pose instead.
+    A pose drawn as in ``LaserWorld-v0`` (``sim.sample_start``), redrawn while the task's
+    ``good_start`` refuses it: ``corner`` while the task is already done there, ``doorway``
+    while it lies in no named room, ``explore`` never. ``reset(options={"pose": ...})`` starts
+    at a given pose instead.
 
     ## Episode End
 
-    1. Termination: ``corner`` and ``doorway`` on success; ``explore`` never.
-    2. Truncation: after the task's step budget (corner 200, doorway 300, explore 400 steps),
-       by the ``TimeLimit`` wrapper that ``gymnasium.make`` adds.
+    1. Termination: on success for a task that ``terminates`` (``corner``, ``doorway``);
+       ``explore`` never.
+    2. Truncation: after the task's step ``budget`` (corner 200, doorway 300, explore 400
+       steps), by the ``TimeLimit`` wrapper that ``gymnasium.make`` adds.
 
     ``info["is_success"]`` is in every ``info`` and says whether the task is done so far: a
     corner or another room reached; for ``explore``, at least 40 % of the cells visited (the
     paper's random behaviour, driven through this action box, covers a median 26 % in
     ``rooms1`` and never reached 40 % in 200 episodes). ``info["coverage"]`` gives the fraction
-    visited. Read at an episode's last step it is the episode's success, what
-    stable-baselines3's ``EvalCallback`` reads.
+    of the grid visited (only ``explore`` marks cells; for the others it stays at the start
+    cell). Read at an episode's last step it is the episode's success, what stable-baselines3's
+    ``EvalCallback`` reads.
 
     ## Arguments
 
@@ -97,8 +291,8 @@ class LaserTaskEnv(LaserWorldEnv):
 
     ```
 
-    ``task`` (``"corner"``, ``"doorway"``, ``"explore"``; each id passes its own), ``world``,
-    ``noise`` and ``render_mode`` as in ``LaserWorld-v0``; ``max_episode_steps`` to
+    ``task``: a name in ``TASKS`` or a ``Task`` (each Gymnasium id passes its own name);
+    ``world``, ``noise`` and ``render_mode`` as in ``LaserWorld-v0``; ``max_episode_steps`` to
     ``gym.make`` changes the budget.
 
     ## Version History
@@ -110,39 +304,22 @@ class LaserTaskEnv(LaserWorldEnv):
 
     def __init__(
         self,
-        task: str = "corner",
+        task: str | Task = "corner",
         world: str | Path | World = "rooms1",
         noise: float = 0.0,
         render_mode: str | None = None,
     ):
-        if task not in TASKS:
-            raise InputError(f"unknown task {task!r}: use one of {', '.join(TASKS)}")
+        self.task = get_task(task)
         super().__init__(world, noise, render_mode)
-        self.task = task
         self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
         self.corners = corner_points(self.world)  # (C, 2)
         self.reach_layout = sim.SensorLayout(angles=tuple(self.angles), max_range=CORNER_REACH)
-        if task == "doorway" and len(self.world.rooms) < 2:
-            raise InputError(
-                f"task doorway needs a world with at least two named rooms; world "
-                f"{self.world.name!r} names {len(self.world.rooms)}"
-            )
-        self.visited = np.zeros((GRID, GRID), dtype=bool)  # explore: cells entered
-        self.start_room = -1  # doorway: index in world.rooms
+        problem = self.task.check(self.world)
+        if problem is not None:
+            raise InputError(f"task {self.task.name} {problem}")
+        self.visited = np.zeros((GRID, GRID), dtype=bool)  # cells entered this episode
+        self.start_room = -1  # index in world.rooms where the episode started
         self.done = False  # the task is done (success so far)
-
-    # --- the task: what it measures at a pose ---------------------------------------------
-    def _corner_distance(self) -> float:
-        return float(corner_distances(self.corners, np.array([self.pose]))[0])
-
-    def _at_corner(self) -> bool:
-        if self._corner_distance() > CORNER_REACH:  # cheap test first: no ray cast
-            return False
-        return bool(corner_in_view(self.world, np.array([self.pose]), self.reach_layout)[0])
-
-    def _cell(self) -> tuple[int, int]:
-        i, j = grid_cells(self.world, np.array([self.pose]))
-        return int(i[0]), int(j[0])
 
     def _task_info(self, info: dict[str, Any]) -> dict[str, Any]:
         info["is_success"] = self.done
@@ -156,7 +333,7 @@ class LaserTaskEnv(LaserWorldEnv):
             raise ValueError(f"action must be 2 finite numbers in [-1, 1], got {action!r}")
         a = np.clip(action.reshape(2), -1.0, 1.0)
         command = np.array([(a[0] + 1.0) / 2.0 * MAX_STEP, a[1] * MAX_TURN])  # (d, r)
-        before = np.array([self._corner_distance()]) if self.task == "corner" else None
+        before = measure(self, np.array([self.pose]))
         observation, _, _, _, info = super().step(command)
         rewards, terminated, done = task_step(
             self, np.array([self.pose]), before, np.array([self.start_room]), self.visited[None]
@@ -166,17 +343,19 @@ class LaserTaskEnv(LaserWorldEnv):
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         observation, info = super().reset(seed=seed, options=options)  # seeds, draws a pose
-        if (options or {}).get("pose") is None and not self._good_start():
+        if (options or {}).get("pose") is None and not self.task.good_start(self):
             for _ in range(MAX_START_DRAWS):
                 self.pose = sim.sample_start(self.world, self.np_random)
-                if self._good_start():
+                if self.task.good_start(self):
                     break
             else:
-                raise InputError(f"world {self.world.name!r}: no start pose for task {self.task}")
+                raise InputError(
+                    f"world {self.world.name!r}: no start pose for task {self.task.name}"
+                )
             observation, info = self._observe(), self._info(False)
         self.start_room = self._room()
         self.visited[:] = False
-        self.visited[self._cell()] = True
+        self.visited[grid_cells(self.world, np.array([self.pose]))] = True
         self.done = False
         return observation, self._task_info(info)
 
@@ -184,26 +363,10 @@ class LaserTaskEnv(LaserWorldEnv):
         """Index in ``world.rooms`` of the room holding the agent, -1 for none."""
         return int(self.world.room_index(np.array([self.pose[0]]), np.array([self.pose[1]]))[0])
 
-    def _good_start(self) -> bool:
-        if self.task == "corner":
-            return not self._at_corner()
-        if self.task == "doorway":
-            return self._room() >= 0
-        return True
 
-
-def corner_distances(corners: np.ndarray, poses: np.ndarray) -> np.ndarray:
-    """(N,) distance from each pose (N, 3) to its nearest corner (C, 2)."""
-    dx = corners[None, :, 0] - poses[:, 0, None]  # (N, C)
-    dy = corners[None, :, 1] - poses[:, 1, None]
-    return np.hypot(dx, dy).min(axis=1)
-
-
-def grid_cells(world: World, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The explore grid's cell (i, j), (N,) each, of each pose (N, 3)."""
-    i = np.clip((poses[:, 0] / world.width * GRID).astype(int), 0, GRID - 1)
-    j = np.clip((poses[:, 1] / world.height * GRID).astype(int), 0, GRID - 1)
-    return i, j
+def measure(env: LaserTaskEnv, poses: np.ndarray) -> np.ndarray | None:
+    """(N,) the task's ``measure`` of the poses (N, 3) before a move; None when it has none."""
+    return None if env.task.measure is None else env.task.measure(env, poses)
 
 
 def task_step(
@@ -213,31 +376,15 @@ def task_step(
     start_room: np.ndarray,
     visited: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The task's rewards (N,), terminations (N,) and success so far (N,) of N robots of
-    ``env``'s task and world that have just moved to ``poses`` (N, 3); ``before`` (N,) their
-    corner distances before the move (corner), ``start_room`` (N,) (doorway), ``visited``
-    (N, GRID, GRID) updated in place (explore). ``LaserTaskEnv.step`` (N = 1) and
-    ``rl.vec_env.TaskVecEnv`` both score through it (the class docstring's Rewards)."""
-    n = len(poses)
-    rewards, terminated = np.zeros(n), np.zeros(n, dtype=bool)
-    x, y = poses[:, 0], poses[:, 1]
-    if env.task == "corner":
-        after = corner_distances(env.corners, poses)
-        rewards = CORNER_PROGRESS * (before - after)
-        near = np.flatnonzero(after <= CORNER_REACH)  # cheap test first: no ray cast
-        if near.size:
-            terminated[near[corner_in_view(env.world, poses[near], env.reach_layout)]] = True
-        return rewards + terminated, terminated, terminated.copy()  # +1 on reaching a corner
-    if env.task == "doorway":
-        room = env.world.room_index(x, y)  # (N,)
-        for k in np.unique(start_room):
-            mine = np.flatnonzero(start_room == k)
-            still = point_in_polygon(env.world.rooms[k].polygon, x[mine], y[mine])
-            terminated[mine] = ~still & (room[mine] >= 0)  # in another named room
-        return terminated.astype(np.float64), terminated, terminated.copy()
-    i, j = grid_cells(env.world, poses)
-    rows = np.arange(n)
-    new = ~visited[rows, i, j]
-    visited[rows, i, j] = True
-    rewards = np.where(new, CELL_REWARD, 0.0)
-    return rewards, terminated, visited.mean(axis=(1, 2)) >= EXPLORE_SUCCESS
+    """The rewards (N,), terminations (N,) and success so far (N,) of N robots of ``env``'s
+    task and world that have just moved to ``poses`` (N, 3); ``before`` (N,) what ``measure``
+    gave before the move, ``start_room`` (N,), ``visited`` (N, GRID, GRID), which the task's
+    reward may update in place. ``LaserTaskEnv.step`` (N = 1) and ``rl.vec_env.TaskVecEnv``
+    both score through it (the class docstring's Rewards)."""
+    task = env.task
+    episodes = Episodes(poses, before, start_room, visited)
+    rewards = task.reward(env, episodes)
+    success = np.asarray(task.success(env, episodes), dtype=bool)
+    rewards = rewards + task.success_reward * success
+    terminated = success.copy() if task.terminates else np.zeros_like(success)
+    return rewards, terminated, success

@@ -23,17 +23,34 @@ from pathlib import Path
 from sensorimotor.errors import InputError
 from sensorimotor.files import file_hash
 from sensorimotor.jobs.cache import stage_key
-from sensorimotor.learn.models import REC_S, REC_SM, SM, S
 from sensorimotor.learn.runs import count
 from sensorimotor.report.document import Block, h, image, p, table
 from sensorimotor.rl.results import CLAIM, HEADLINE, MIN_SEEDS, THRESHOLD
 from sensorimotor.version import __version__
 
-TASKS = ("corner", "doorway", "explore")
-FEATURES = ("pose", "raw", S, SM, REC_S, REC_SM, "random")
 WORLD = "rooms1"  # where the agents learn, on encoders trained there
 TRANSFER = ("square", "rooms2")  # where the final policies are also evaluated
-ENCODERS = (S, SM, REC_S, REC_SM)  # the feature sets read from the reproduction's runs
+
+
+def tasks() -> tuple[str, ...]:
+    """The grid's tasks: every registered one (``envs.tasks.TASKS``, read now)."""
+    from sensorimotor.rl.runner import TASKS
+
+    return tuple(TASKS)
+
+
+def features() -> tuple[str, ...]:
+    """The grid's feature sets: every one (``rl.features.feature_sets()``, read now)."""
+    from sensorimotor.rl.features import feature_sets
+
+    return tuple(feature_sets())
+
+
+def encoders() -> tuple[str, ...]:
+    """The feature sets read from the reproduction's runs: one per model kind (``KINDS``)."""
+    from sensorimotor.rl.features import feature_sets
+
+    return tuple(f.kind for f in feature_sets().values() if f.trained)
 
 
 @dataclass(frozen=True)
@@ -77,8 +94,9 @@ def configs(rep) -> dict:
         raise InputError(
             "experiment rl: needs the encoders trained on rooms1; add rooms1 to --worlds"
         )
-    runs = Path(rep.run_dir(WORLD, ENCODERS[0], 0)).parent
-    for model in ENCODERS:
+    kinds = encoders()
+    runs = Path(rep.run_dir(WORLD, kinds[0], 0)).parent
+    for model in kinds:
         for seed in range(rep.seeds):
             folder = Path(rep.run_dir(WORLD, model, seed))
             if folder != run_folder(runs, WORLD, model, seed) or not folder.is_dir():
@@ -86,7 +104,7 @@ def configs(rep) -> dict:
     plan = plan_for(rep.scale.name)
     ppo = {**RLConfig().ppo, **(plan.ppo or {})}
     settings = {
-        "world": WORLD, "features": FEATURES, "seeds": rep.seeds,
+        "world": WORLD, "features": features(), "seeds": rep.seeds,
         "runs": str(runs), "trained_on": WORLD,
         "eval_episodes": plan.eval_episodes, "ppo": ppo,
     }  # fmt: skip
@@ -98,7 +116,7 @@ def configs(rep) -> dict:
             eval_every=plan.budget(task)[1],
             **settings,
         )
-        for task in TASKS
+        for task in tasks()
     }
 
 
@@ -109,7 +127,7 @@ def grid_key(config) -> str:
 
     weights = {
         f"{model}__s{seed}": file_hash(run_folder(config.runs, WORLD, model, seed) / "model.pt")
-        for model in ENCODERS
+        for model in encoders()
         for seed in range(config.seeds)
     }
     described = {

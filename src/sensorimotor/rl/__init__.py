@@ -2,10 +2,15 @@
 
 The paper's conclusion plans to use the learned representations in a reinforcement-learning
 task. This layer runs the S-RL Toolbox's protocol on today's tools: the same algorithm
-(stable-baselines3 PPO) on each feature set (``features.FEATURES``: the true pose and the raw
-readings as references, the four trained encoders' z_s, an untrained encoder), many seeds,
+(stable-baselines3 PPO) on each feature set (``features.feature_sets()``: the true pose and the
+raw readings as references, the trained encoders' z_s, an untrained encoder), many seeds,
 bootstrap confidence intervals (``results``). ``runner.run_grid`` is what ``sensorimotor rl``
 calls. stable-baselines3 is the ``[rl]`` extra: ``check_extra`` says so in one line.
+
+The trained encoders are read from a folder of training runs named ``{world}__{kind}__s{seed}``
+(what ``sensorimotor reproduce`` writes in ``OUT/runs``; a clone of the repository ships some in
+``docs/results/runs``), given as ``sensorimotor rl --runs DIR`` or in the environment variable
+``SENSORIMOTOR_RUNS`` (``RUNS_ENV``); there is no default.
 """
 
 from __future__ import annotations
@@ -13,6 +18,8 @@ from __future__ import annotations
 import importlib.util
 
 from sensorimotor.errors import InputError
+
+RUNS_ENV = "SENSORIMOTOR_RUNS"  # the command line's --runs, when the option is not given
 
 
 def check_extra() -> None:

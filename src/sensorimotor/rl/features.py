@@ -1,16 +1,18 @@
 """What the policy sees: the true pose, the raw readings, or a frozen encoder's z_s.
 
 ``FeatureVecEnv`` wraps a vectorised task environment (``envs.tasks``) and replaces each
-observation (the 5 readings) by one feature set:
+observation (the 5 readings) by one feature set. The feature sets are one registry,
+``feature_sets()``, read when asked: the three below and one per model kind of
+``learn.models.KINDS`` (a kind registered there is a feature set here):
 
 ======== ==== =================================================================================
 name     size what
 ======== ==== =================================================================================
 pose     4    the oracle: ``2x/W - 1, 2y/H - 1, cos(heading), sin(heading)`` (``info["pose"]``)
 raw      5    the readings divided by the range (``sim.database.scale_sensors``)
-s, sm    10   z_s of a trained feed-forward encoder (``learn.models``) on the scaled readings
-rec-s,   10   z_s of a trained recurrent encoder, its LSTM state carried through the episode
-rec-sm        and set to zero when the episode ends (with the environment's reset)
+KIND     10   z_s of the trained encoder of that kind (``s``, ``sm``: feed-forward; ``rec-s``,
+              ``rec-sm``: recurrent, its LSTM state carried through the episode and set to zero
+              when the episode ends, with the environment's reset), read from a runs folder
 random   10   z_s of an *untrained* Recurrent-SM encoder (same shape, seeded weights): the
               baseline the S-RL Toolbox found strong
 ======== ==== =================================================================================
@@ -22,6 +24,8 @@ All parallel environments go through the encoder in one batched call per step.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -31,24 +35,86 @@ from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
 from sensorimotor.errors import InputError
 from sensorimotor.learn.evaluate import load_run
-from sensorimotor.learn.models import KINDS, REC_S, REC_SM, SM, S, SensorimotorEncoder, build_model
+from sensorimotor.learn.models import KINDS, REC_SM, SensorimotorEncoder, build_model
+from sensorimotor.rl import RUNS_ENV
 from sensorimotor.sim.core import DEFAULT_LAYOUT, MAX_RANGE
 from sensorimotor.sim.database import scale_sensors
 
-FEATURES = ("pose", "raw", S, SM, REC_S, REC_SM, "random")
 RANDOM_KIND = REC_SM  # the untrained encoder's architecture
-SIZES = {"pose": 4, "raw": 5}  # the encoders give z_s: ModelConfig.z_sensors
+
+
+def pose_features(readings: np.ndarray, poses: np.ndarray, size: tuple[float, float]) -> np.ndarray:
+    """(n, 4) the oracle from the poses (n, 3) in a world of ``size`` (width, height)."""
+    w, h = size
+    x, y, heading = poses[:, 0], poses[:, 1], poses[:, 2]  # (n,) each
+    out = np.stack([2 * x / w - 1, 2 * y / h - 1, np.cos(heading), np.sin(heading)], 1)
+    return out.astype(np.float32)
+
+
+def raw_features(readings: np.ndarray, poses: np.ndarray, size: tuple[float, float]) -> np.ndarray:
+    """(n, 5) the readings (n, 5) scaled to [0, 1]."""
+    return scale_sensors(readings, MAX_RANGE)
+
+
+@dataclass(frozen=True)
+class FeatureSet:
+    """One feature set: its name, its size and how it is computed (module doc)."""
+
+    name: str
+    size: int | None = None
+    """Features per step; None: the encoder's z_s (``ModelConfig.z_sensors``)."""
+    direct: Callable[[np.ndarray, np.ndarray, tuple[float, float]], np.ndarray] | None = None
+    """Computes them from the readings (n, 5), poses (n, 3) and world size; None: an encoder's
+    z_s of the scaled readings does."""
+    kind: str | None = None
+    """The encoder's model kind (``learn.models.KINDS``); None: no encoder."""
+    trained: bool = False
+    """The encoder is a training run read from the runs folder (else seeded, untrained)."""
+
+
+def feature_sets() -> dict[str, FeatureSet]:
+    """Every feature set by name: pose, raw, one per model kind in ``KINDS`` (read now, so a
+    kind registered later is one), random."""
+    return {
+        "pose": FeatureSet("pose", 4, pose_features),
+        "raw": FeatureSet("raw", 5, raw_features),
+        **{k: FeatureSet(k, kind=k, trained=True) for k in KINDS},
+        "random": FeatureSet("random", kind=RANDOM_KIND),
+    }
+
+
+def feature_set(name: str) -> FeatureSet:
+    """The feature set ``name``; InputError naming the known ones."""
+    sets = feature_sets()
+    if name not in sets:
+        raise InputError(f"unknown features {name!r}: use one of {', '.join(sets)}")
+    return sets[name]
+
+
+def needs_runs(features) -> list[str]:
+    """Those of ``features`` read from trained encoder runs (``--runs``)."""
+    sets = feature_sets()
+    return [f for f in features if f in sets and sets[f].trained]
 
 
 def parse_features(text: str) -> list[str]:
     """``"pose,raw,rec-sm"`` -> a list of known feature names, in order, without repeats."""
     names = [n.strip() for n in text.split(",") if n.strip()]
-    unknown = [n for n in names if n not in FEATURES]
+    known = feature_sets()
+    unknown = [n for n in names if n not in known]
     if unknown or not names:
         raise InputError(
-            f"unknown features {', '.join(unknown) or repr(text)}: use some of {', '.join(FEATURES)}"
+            f"unknown features {', '.join(unknown) or repr(text)}: use some of {', '.join(known)}"
         )
     return list(dict.fromkeys(names))
+
+
+def no_runs_error(features: list[str]) -> InputError:
+    """The one line for trained feature sets asked for without a runs folder."""
+    return InputError(
+        f"features {', '.join(features)} read trained encoders: give --runs DIR (a folder of "
+        f"runs named {{world}}__{{kind}}__s{{seed}}) or set {RUNS_ENV}"
+    )
 
 
 def run_folder(runs: Path, trained_on: str, kind: str, seed: int) -> Path:
@@ -58,22 +124,24 @@ def run_folder(runs: Path, trained_on: str, kind: str, seed: int) -> Path:
 
 
 def load_encoder(
-    features: str, runs: Path, trained_on: str, seed: int
+    features: str, runs: Path | None, trained_on: str, seed: int
 ) -> tuple[SensorimotorEncoder | None, str | None]:
     """The frozen encoder behind ``features`` and the run folder it comes from.
 
     ``pose`` and ``raw`` need none: ``(None, None)``. ``random`` is an untrained
     Recurrent-SM encoder whose weights depend on ``seed`` alone. A trained one is RL seed
     ``seed``'s own encoder seed: ``run_folder(runs, trained_on, features, seed)``; it must be
-    that kind, trained on that world, with the environment's sensor layout (InputError).
+    that kind, trained on that world, with the environment's sensor layout (InputError; also
+    when ``runs`` is None).
     """
-    if features in SIZES:
+    fs = feature_set(features)
+    if fs.kind is None:
         return None, None
-    if features == "random":
-        return _frozen(build_model(RANDOM_KIND, seed=seed)), None
-    if features not in KINDS:
-        raise InputError(f"unknown features {features!r}: use one of {', '.join(FEATURES)}")
-    folder = run_folder(runs, trained_on, features, seed)
+    if not fs.trained:
+        return _frozen(build_model(fs.kind, seed=seed)), None
+    if runs is None:
+        raise no_runs_error([features])
+    folder = run_folder(runs, trained_on, fs.kind, seed)
     run = load_run(folder)
     layout = run.config["data"].get("sensor_layout")
     if layout is not None and layout != DEFAULT_LAYOUT.to_dict():
@@ -81,10 +149,10 @@ def load_encoder(
             f"{folder}: trained on sensor layout {layout}, the environment has "
             f"{DEFAULT_LAYOUT.to_dict()}"
         )
-    if run.kind != features or run.trained_on != trained_on:
+    if run.kind != fs.kind or run.trained_on != trained_on:
         raise InputError(
             f"{folder}: a {run.kind} encoder trained on {run.trained_on}, "
-            f"not {features} on {trained_on}"
+            f"not {fs.kind} on {trained_on}"
         )
     return _frozen(run.model), str(folder)
 
@@ -109,15 +177,15 @@ class FeatureVecEnv(VecEnvWrapper):
     def __init__(
         self, venv: VecEnv, features: str, encoder: SensorimotorEncoder | None = None
     ) -> None:
-        if features not in FEATURES:
-            raise InputError(f"unknown features {features!r}: use one of {', '.join(FEATURES)}")
-        if (encoder is None) != (features in SIZES):
+        fs = feature_set(features)
+        if (encoder is None) != (fs.kind is None):
             raise ValueError(
                 f"features {features!r} {'need' if encoder is None else 'take no'} encoder"
             )
         self.features = features
+        self.feature_set = fs
         self.encoder = encoder
-        size = SIZES.get(features) or encoder.config.z_sensors
+        size = fs.size or encoder.config.z_sensors
         space = spaces.Box(-np.inf, np.inf, shape=(size,), dtype=np.float32)
         super().__init__(venv, observation_space=space)
         self.recurrent = encoder is not None and encoder.config.recurrent
@@ -132,14 +200,9 @@ class FeatureVecEnv(VecEnvWrapper):
     def _features(self, readings: np.ndarray, poses: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """Features (n, F) of environments ``rows`` (n,) from their readings (n, 5) and poses
         (n, 3); advances their recurrent state by one step."""
-        if self.features == "pose":
-            w, h = self.sizes
-            x, y, heading = poses[:, 0], poses[:, 1], poses[:, 2]  # (n,) each
-            out = np.stack([2 * x / w - 1, 2 * y / h - 1, np.cos(heading), np.sin(heading)], 1)
-            return out.astype(np.float32)  # (n, 4)
+        if self.feature_set.direct is not None:  # pose, raw
+            return self.feature_set.direct(readings, poses, self.sizes)
         scaled = scale_sensors(readings, MAX_RANGE)  # (n, 5) in [0, 1]
-        if self.encoder is None:
-            return scaled
         with torch.no_grad():
             x = torch.from_numpy(scaled)[:, None, :]  # (n, 1, 5): one time step
             if not self.recurrent:

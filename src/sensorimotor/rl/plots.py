@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +20,13 @@ COLORS = {
     REC_SM: "tab:red",
     "random": "tab:purple",
 }
+SPARE = ("tab:brown", "tab:pink", "tab:olive", "tab:cyan")  # a feature set without a colour
+
+
+def colors(names) -> dict[str, str]:
+    """A colour per feature set: ``COLORS``'s, else the next of ``SPARE``, in turn."""
+    spare = itertools.cycle(SPARE)
+    return {n: COLORS[n] if n in COLORS else next(spare) for n in names}
 
 
 def rl_figure(rl: dict) -> Figure:
@@ -28,10 +36,11 @@ def rl_figure(rl: dict) -> Figure:
     task's world and in each transfer world, deterministic then stochastic policy."""
     fig = Figure(figsize=(15, 4.2), layout="constrained")
     curves, *bars = fig.subplots(1, 3, width_ratios=[3, 2, 2])
+    palette = colors(rl["results"])
     for name, r in rl["results"].items():
         c = r["curve"]
         steps = np.asarray(c["steps"])
-        color = COLORS.get(name)
+        color = palette[name]
         for score, style in (("success", "-"), ("success_stochastic", "--")):
             curves.plot(steps, c[score]["mean"], style, color=color,
                         label=name if style == "-" else None)  # fmt: skip

@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from sensorimotor.learn.models import REC_SM, SM
+from sensorimotor.learn.models import KINDS
 
 BOOTSTRAP = 10_000  # resamples
 CONFIDENCE = 0.95
@@ -91,7 +91,7 @@ HEADLINE = "success_stochastic"
 """The score a report leads with: the success rate of the policy PPO trains, its actions sampled
 (DESIGN.md, "Reinforcement learning": the mean action rewards reflexes and fails the oracle)."""
 MIN_SEEDS = 3  # fewer seeds: a report states no verdict (a bootstrap over 2 values says nothing)
-MOTOR_FEATURES = (SM, REC_SM)  # encoders trained with the motor commands
+MOTOR_FEATURES = tuple(k for k in KINDS if KINDS[k].motors)  # encoders trained with motors
 CLAIM = "features learned with motors help the agent more than raw readings"
 THRESHOLD = (
     "supported when, for every motor-trained feature set in the grid (sm, rec-sm), the 95 % "

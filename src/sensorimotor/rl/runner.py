@@ -29,18 +29,23 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv
 
-from sensorimotor.envs import TASK_IDS, LaserTaskEnv
+from sensorimotor.envs.tasks import TASKS, LaserTaskEnv
 from sensorimotor.errors import InputError
 from sensorimotor.files import atomic_path, read_json, write_text_atomic
 from sensorimotor.learn.models import REC_SM
-from sensorimotor.rl.features import FEATURES, FeatureVecEnv, load_encoder
+from sensorimotor.rl.features import (
+    FeatureVecEnv,
+    feature_sets,
+    load_encoder,
+    needs_runs,
+    no_runs_error,
+)
 from sensorimotor.rl.results import HEADLINE, summary, verdicts
 from sensorimotor.rl.vec_env import TaskVecEnv
 from sensorimotor.sim.world import load_world
 from sensorimotor.version import __version__
 
 EVAL_SEED = 1_000_000  # the evaluation environments' seed: the same starts for every agent
-DEFAULT_RUNS = Path("docs/results/runs")  # the shipped trained encoders
 
 
 @dataclass(frozen=True)
@@ -48,17 +53,18 @@ class RLConfig:
     """One experiment: a task in a world, PPO's settings, how it is evaluated."""
 
     task: str = "corner"
-    """corner, doorway or explore (``envs.tasks``)."""
+    """A task of ``envs.tasks.TASKS`` (corner, doorway, explore)."""
     world: str = "rooms1"
     """The world the agents learn in."""
     features: tuple[str, ...] = ("pose", "raw", REC_SM, "random")
-    """Feature sets, each learned by its own agents (``features.FEATURES``)."""
+    """Feature sets, each learned by its own agents (``features.feature_sets()``)."""
     seeds: int = 3
     """Agents per feature set: seeds 0 .. seeds - 1 (and encoder seeds)."""
     steps: int = 100_000
     """Environment steps each agent learns for."""
-    runs: str = str(DEFAULT_RUNS)
-    """Folder of trained encoder runs, named {world}__{kind}__s{seed}."""
+    runs: str | None = None
+    """Folder of trained encoder runs, named {world}__{kind}__s{seed}; needed by the trained
+    feature sets (``features.needs_runs``), no default."""
     trained_on: str | None = None
     """The world the encoders were trained on (default: the task's world)."""
     transfer: tuple[str, ...] = ()
@@ -83,11 +89,12 @@ class RLConfig:
     """stable-baselines3 PPO arguments (MlpPolicy, 2 x 64 tanh)."""
 
     def __post_init__(self) -> None:
-        if self.task not in TASK_IDS:
-            raise InputError(f"unknown task {self.task!r}: use one of {', '.join(TASK_IDS)}")
-        unknown = [f for f in self.features if f not in FEATURES]
+        if self.task not in TASKS:
+            raise InputError(f"unknown task {self.task!r}: use one of {', '.join(TASKS)}")
+        known = feature_sets()
+        unknown = [f for f in self.features if f not in known]
         if unknown or not self.features:
-            raise InputError(f"unknown features {unknown}: use some of {', '.join(FEATURES)}")
+            raise InputError(f"unknown features {unknown}: use some of {', '.join(known)}")
         for name in ("seeds", "steps", "eval_every", "eval_episodes", "n_envs"):
             if getattr(self, name) < 1:
                 raise InputError(f"--{name.replace('_', '-')} must be at least 1")
@@ -115,7 +122,7 @@ def make_env(
         venv.seed(seed)
     else:
         venv = make_vec_env(
-            TASK_IDS[config.task], n_envs=n, seed=seed, env_kwargs={"world": world},
+            TASKS[config.task].env_id, n_envs=n, seed=seed, env_kwargs={"world": world},
             vec_env_cls=DummyVecEnv,
         )  # fmt: skip
     return FeatureVecEnv(venv, features, encoder)
@@ -193,7 +200,7 @@ def train_agent(
     """Train one agent in ``folder`` (made anew); return its ``result.json`` content."""
     torch.set_num_threads(1)  # one core per agent; also makes the numbers reproducible
     start = time.perf_counter()
-    encoder, encoder_run = load_encoder(features, Path(config.runs), config.trained_on, seed)
+    encoder, encoder_run = load_encoder(features, _runs(config), config.trained_on, seed)
     venv = make_env(config, config.world, features, encoder, config.n_envs, seed)
     eval_envs = min(10, config.eval_episodes)
     eval_venv = make_env(config, config.world, features, encoder, eval_envs, EVAL_SEED)
@@ -262,14 +269,22 @@ def worlds_holding(task: str, worlds: tuple[str, ...]) -> tuple[str, ...]:
     return tuple(held)
 
 
+def _runs(config: RLConfig) -> Path | None:
+    return None if config.runs is None else Path(config.runs)
+
+
 def check_inputs(config: RLConfig) -> None:
-    """Every InputError the grid can meet, before any agent trains: a world that does not load
-    or lacks the task's named rooms, a missing or unfitting encoder run."""
+    """Every InputError the grid can meet, before any agent trains: trained feature sets
+    without a runs folder, a world that does not load or cannot hold the task, a missing or
+    unfitting encoder run."""
+    missing = needs_runs(config.features)
+    if missing and config.runs is None:
+        raise no_runs_error(missing)
     for world in (config.world, *config.transfer):
         LaserTaskEnv(config.task, load_world(world))
     for features in config.features:
         for seed in range(config.seeds):
-            load_encoder(features, Path(config.runs), config.trained_on, seed)
+            load_encoder(features, _runs(config), config.trained_on, seed)
 
 
 # a job as the job runners of ``report`` take it: (name, function, arguments)

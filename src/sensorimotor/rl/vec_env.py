@@ -10,7 +10,8 @@ environment's ``step`` in turn through four wrappers, three ray casts and Python
 each; here the motion, the collision check and the readings of all N robots are one call of
 the simulation core (``sim.core.move_many``, the same ray caster and motion as
 ``LaserWorldEnv.step``) and the task's rewards one call of ``envs.tasks.task_step``, the
-scoring ``LaserTaskEnv.step`` runs with N = 1. Environments whose
+scoring ``LaserTaskEnv.step`` runs with N = 1, which reads the task's ``Task`` object
+(``envs.tasks.TASKS``): any registered task runs here as it runs there. Environments whose
 episode ended are reset one by one by their own ``LaserTaskEnv.reset`` (its start rules).
 
 ``info`` holds what the learning loop reads: ``pose``, ``readings``, ``collision``,
@@ -27,25 +28,26 @@ import numpy as np
 from stable_baselines3.common.vec_env import VecEnv
 
 from sensorimotor.envs.laser_world import MAX_STEP, MAX_TURN, WALL_MARGIN
-from sensorimotor.envs.tasks import BUDGETS, GRID, LaserTaskEnv, corner_distances, task_step
+from sensorimotor.envs.tasks import GRID, LaserTaskEnv, Task, measure, task_step
 from sensorimotor.sim import core as sim
 from sensorimotor.sim.world import World
 
 
 class TaskVecEnv(VecEnv):
-    """``n`` environments of ``task`` in ``world``, truncated after ``budget`` steps (default:
-    the task's, ``envs.tasks.BUDGETS``); module doc."""
+    """``n`` environments of ``task`` (a name in ``envs.tasks.TASKS`` or a ``Task``) in
+    ``world``, truncated after ``budget`` steps (default: the task's, ``Task.budget``); module
+    doc."""
 
-    def __init__(self, task: str, world: str | World, n: int, budget: int | None = None):
+    def __init__(self, task: str | Task, world: str | World, n: int, budget: int | None = None):
         self.envs = [LaserTaskEnv(task, world) for _ in range(n)]
         first = self.envs[0]
         super().__init__(n, first.observation_space, first.action_space)
-        self.task, self.world = task, first.world
-        self.budget = BUDGETS[task] if budget is None else int(budget)
+        self.task, self.world = first.task, first.world  # the Task object
+        self.budget = self.task.budget if budget is None else int(budget)
         self.render_mode = None
         self.poses = np.zeros((n, 3))  # (N, 3) x, y, heading
-        self.start_room = np.full(n, -1)  # (N,) doorway: index in world.rooms
-        self.visited = np.zeros((n, GRID, GRID), dtype=bool)  # explore
+        self.start_room = np.full(n, -1)  # (N,) index in world.rooms where the episode started
+        self.visited = np.zeros((n, GRID, GRID), dtype=bool)  # cells entered this episode
         self.done = np.zeros(n, dtype=bool)  # the task is done so far
         self.steps = np.zeros(n, dtype=int)  # steps into the episode
         self.returns = np.zeros(n)  # the episode's return so far (Monitor's)
@@ -99,7 +101,7 @@ class TaskVecEnv(VecEnv):
         d = (a[:, 0] + 1.0) / 2.0 * MAX_STEP  # (N,) units
         r = a[:, 1] * MAX_TURN  # (N,) rad
         env = self.envs[0]
-        before = corner_distances(env.corners, self.poses) if self.task == "corner" else None
+        before = measure(env, self.poses)  # the task's quantity before the move, if any
         hit = np.zeros(self.num_envs, dtype=np.bool_)
         sim.move_many(
             env.segments, self.poses, d, r, env.ahead_range, WALL_MARGIN, env.angles,
