@@ -4,8 +4,9 @@ The paper's conclusion plans to use the learned representations in a reinforceme
 task. This layer runs the S-RL Toolbox's protocol on today's tools: the same algorithm
 (stable-baselines3 PPO) on each feature set (``features.FEATURES``: the true pose and the raw
 readings as references, the four trained encoders' z_s, an untrained encoder), many seeds,
-bootstrap confidence intervals (``results``). ``runner.run_grid`` is what ``sensorimotor rl``
-calls. stable-baselines3 is the ``[rl]`` extra: ``check_extra`` says so in one line.
+confidence intervals over seeds (``results``, on ``stats``). ``runner.run_grid`` is what
+``sensorimotor rl`` calls. stable-baselines3 is the ``[rl]`` extra: ``check_extra`` says so in
+one line.
 """
 
 from __future__ import annotations
