@@ -18,27 +18,41 @@ from sensorimotor.learn.train import train
 from sensorimotor.report.document import to_markdown
 from sensorimotor.sim.database import generate, save_database
 from sensorimotor.sim.world import load_world
+from sensorimotor.stats import BEFORE
 
 
 def test_the_verdict_needs_the_margin_and_two_standard_errors():
+    verdict = map_stage.verdict
     # one seed: the margin alone
-    assert map_stage.verdict([1.0], [0.9], 0.05)["holds"] is True
-    assert map_stage.verdict([1.0], [0.97], 0.05)["holds"] is False
+    assert verdict([1.0], [0.9], 0.05).holds is True
+    assert verdict([1.0], [0.97], 0.05).holds is False
     # a large mean difference that is noisy over seeds does not hold
-    noisy = map_stage.verdict([1.0, 0.0, 1.0], [0.2, 0.6, 0.2], 0.05)
-    assert noisy["mean"] == pytest.approx(1 / 3)
-    assert noisy["se"] > noisy["mean"] / 2
-    assert noisy["holds"] is False
-    steady = map_stage.verdict([0.5, 0.52, 0.49], [0.4, 0.41, 0.4], 0.05)
-    assert steady["holds"] is True
-    assert steady["sd"] == pytest.approx(0.01, abs=1e-9)  # differences 0.1, 0.11, 0.09
-    assert map_stage.verdict([0.5, None], [0.4, 0.4], 0.05)["holds"] is None
+    noisy = verdict([1.0, 0.0, 1.0], [0.2, 0.6, 0.2], 0.05)
+    assert noisy.numbers["mean"] == pytest.approx(1 / 3)
+    assert noisy.numbers["se"] > noisy.numbers["mean"] / 2
+    assert noisy.holds is False
+    steady = verdict([0.5, 0.52, 0.49], [0.4, 0.41, 0.4], 0.05)
+    assert steady.holds is True
+    assert steady.numbers["sd"] == pytest.approx(0.01, abs=1e-9)  # differences 0.1, 0.11, 0.09
+    assert verdict([0.5, None], [0.4, 0.4], 0.05).holds is None
     # success rates of 100 pairs: one seed is judged on its binomial error (about 0.067 here)
-    rates = map_stage.verdict([0.45], [0.33], 0.05, trials=[100])
-    assert rates["se"] == pytest.approx((0.45 * 0.55 / 100 + 0.33 * 0.67 / 100) ** 0.5)
-    assert rates["holds"] is False
-    assert map_stage.verdict([0.6], [0.33], 0.05, trials=[100])["holds"] is True
-    assert map_stage.verdict([0.45] * 25, [0.33] * 25, 0.05, trials=[100] * 25)["holds"] is True
+    rates = verdict([0.45], [0.33], 0.05, trials=[100])
+    assert rates.numbers["se"] == pytest.approx((0.45 * 0.55 / 100 + 0.33 * 0.67 / 100) ** 0.5)
+    assert rates.holds is False
+    assert "binomial" in rates.test
+    assert verdict([0.6], [0.33], 0.05, trials=[100]).holds is True
+    assert verdict([0.45] * 25, [0.33] * 25, 0.05, trials=[100] * 25).holds is True
+
+
+def test_a_verdict_records_its_margin_set_before_the_data_as_strict_json():
+    v = map_stage.verdict([1.0], [0.9], 0.05, claim="the map predicts").to_dict()
+    json.dumps(v, allow_nan=False)
+    assert v["claim"] == "the map predicts"
+    assert v["threshold"] == "mean paired difference above 0.05"
+    want = {"mean": pytest.approx(0.1), "sd": 0.0, "se": None, "n": 1, "margin": 0.05}
+    assert v["numbers"] == want
+    assert v["provenance"] == BEFORE
+    assert "MARGINS" in v["where"]
 
 
 def test_aggregate_pairs_seeds_and_orders_representations():
@@ -57,7 +71,7 @@ def test_aggregate_pairs_seeds_and_orders_representations():
     assert rec["metrics"]["bits.map"]["values"] == [0.9, 0.8]
     assert rec["metrics"]["bits.map"]["mean"] == pytest.approx(0.85)
     assert rec["metrics"]["room.map"]["mean"] is None  # absent from map.json: n/a
-    assert rec["claims"]["predicts"]["mean"] == pytest.approx(0.2)
+    assert rec["claims"]["predicts"]["numbers"]["mean"] == pytest.approx(0.2)
     assert rec["claims"]["predicts"]["holds"] is True  # differences 0.2, 0.2: sd 0
     assert found["raw"]["claims"]["predicts"]["holds"] is False  # one seed, under the margin
     assert rec["claims"]["localises"]["holds"] is None
@@ -103,7 +117,8 @@ def test_run_maps_raw_and_each_run_caches_them_and_the_section_reads_them(
     models = found["worlds"]["rooms1"]
     assert list(models) == ["raw", "s"]
     assert models["s"]["metrics"]["bits.map"]["values"] == [one["bits_per_step"]["map"]]
-    assert models["s"]["metrics"]["bits.map"]["sd"] is None  # one seed
+    one_seed = models["s"]["metrics"]["bits.map"]
+    assert (one_seed["sd"], one_seed["n"]) == (0.0, 1)  # one seed: sd 0 and n = 1 beside it
     assert models["s"]["metrics"]["plan.map"]["mean"] in (0.0, 0.5, 1.0)  # 2 pairs
     assert found["jobs"] == {"fitted": 2, "cached": 0}
 
@@ -121,6 +136,8 @@ def test_run_maps_raw_and_each_run_caches_them_and_the_section_reads_them(
     assert "the map localises the room better than its cells" in md
     assert "map/rooms1__s__s0/place_fields.png" in md  # the trained run's figure, not raw's
     assert "n=1" in md
+    assert "| bits/step: map | " in md
+    assert " ± " not in md.split("### The map on rooms1")[1]  # one seed: no spread shown
 
     # a cached map.json cut short: one line naming it, not a traceback
     cut = tiny_rep.out / "map" / "rooms1__s__s0" / "map.json"

@@ -61,6 +61,8 @@ def test_the_grid_runs_as_jobs_is_cached_and_its_section_reads_it(tmp_path, tiny
     assert "| sm |" in markdown
     assert f"]({corner['folder']}/rl.png)" in markdown
     assert "1 seed(s): no verdict" in markdown
+    assert "(mean, IQM; one seed: no interval)" in markdown
+    assert " (one seed) |" in markdown  # a mean without an interval
 
 
 def test_a_task_that_the_common_budget_teaches_nothing_gets_its_own(monkeypatch):
@@ -115,9 +117,12 @@ def hand_made(scores: dict[str, list[float]]) -> dict:
 
 
 def test_the_verdicts_hold_and_fail_by_their_thresholds():
+    # 3 seeds: Student-t intervals (t = 4.30), wider than the bootstrap of 3 values
     good = {"pose": [0.8, 0.9, 0.7], "random": [0.1, 0.0, 0.1], "raw": [0.2, 0.3, 0.1],
-            "sm": [0.5, 0.6, 0.4], "rec-sm": [0.5, 0.7, 0.4]}  # fmt: skip
-    assert [held for _, held in rl_stage.verdict_lines(hand_made(good))] == [True, True, True]
+            "sm": [0.5, 0.6, 0.4], "rec-sm": [0.5, 0.6, 0.45]}  # fmt: skip
+    lines = rl_stage.verdict_lines(hand_made(good))
+    assert [held for _, held in lines] == [True, True, True]
+    assert "Student-t below 10 seeds" in lines[1][0]
     bad = {**good, "random": [0.8, 0.9, 0.6], "sm": [0.2, 0.2, 0.2]}  # sm - raw: 0, -0.1, +0.1
     lines = rl_stage.verdict_lines(hand_made(bad))
     assert [held for _, held in lines] == [False, False, False]

@@ -16,6 +16,7 @@ from sensorimotor.experiments.scaling_report import section, verdicts
 from sensorimotor.files import file_hash
 from sensorimotor.jobs.workers import run_jobs
 from sensorimotor.sim.database import generate, load_database, save_database
+from sensorimotor.stats import BEFORE
 
 
 def _ctx(out):
@@ -33,7 +34,8 @@ def test_one_condition_runs_its_stages_and_a_second_run_trains_nothing(tmp_path)
     assert load_database(tmp_path / "scaling" / "data" / "tiny.npz").sensors.shape[1] == 3
     assert set(c["errors"]) == {"s", "sm", "rec-s", "rec-sm"}
     assert all(e["n"] == 1 and e["mean"] > 0 for e in c["errors"].values())
-    assert [v["finding"] for v in c["verdicts"]] == ["ordering", "corner cluster", "memory"]
+    assert [v["claim"] for v in c["verdicts"]] == ["ordering", "corner cluster", "memory"]
+    assert {v["provenance"] for v in c["verdicts"]} == {BEFORE}
     json.dumps(first, allow_nan=False)  # strict JSON
     again = sc.run_conditions(ctx, size, [cond])
     assert again["jobs"] == {"data": 0, "train": 0, "evaluate": 0, "analyze": 0}
@@ -52,6 +54,7 @@ def test_one_condition_runs_its_stages_and_a_second_run_trains_nothing(tmp_path)
         )
     ]
     assert "tiny: 3 rays" in text
+    assert any("Thresholds set before the data: analysis/claims.py" in str(t) for t in text)
 
 
 def test_merged_plans_have_each_split_the_union_of_the_plans(tmp_path):
@@ -97,17 +100,22 @@ def test_verdicts_hold_fail_and_say_na_by_their_thresholds():
     errors = {"s": 0.04, "sm": 0.006, "rec-s": 0.035, "rec-sm": 0.002}
     corner = {"raw": 0.3, "s": 0.3, "sm": 0.41, "rec-s": 0.3, "rec-sm": 0.5}
     good = verdicts(errors, _claims(corner, 3.0, {"s": 0.1, "rec-sm": 0.21}))
-    assert [v["verdict"] for v in good] == ["holds", "holds", "holds"]
+    assert [v.holds for v in good] == [True, True, True]
     # SM not below Rec-S; SM's corner F1 only 0.09 above; Rec-SM's R² only 0.09 above S's
     bad = verdicts(
         {**errors, "sm": 0.036},
         _claims({**corner, "sm": 0.39}, 3.0, {"s": 0.1, "rec-sm": 0.19}),
     )
-    assert [v["verdict"] for v in bad] == ["fails", "fails", "fails"]
+    assert [v.holds for v in bad] == [False, False, False]
     one_cluster = verdicts(errors, _claims(corner, 1.0, {"s": 0.1, "rec-sm": 0.5}))
-    assert one_cluster[2]["verdict"] == "fails"
+    assert one_cluster[2].holds is False
     missing = verdicts({**errors, "s": float("nan")}, _claims({**corner, "raw": None}, 3.0, {}))
-    assert [v["verdict"] for v in missing[:2]] == ["n/a", "n/a"]
+    assert [v.holds for v in missing[:2]] == [None, None]
+    assert [v.word("holds", "fails") for v in (good[0], bad[0], missing[0])] == [
+        "holds",
+        "fails",
+        "n/a",
+    ]
 
 
 @pytest.mark.parametrize("name", ["scaling"])

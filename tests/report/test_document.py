@@ -3,16 +3,27 @@ the two renderings saying the same thing."""
 
 from __future__ import annotations
 
+import json
 import math
 
 import pytest
 
 from sensorimotor.analysis import analyze_representation
-from sensorimotor.analysis.claims import _verdict, cluster_f1, paper_claims
+from sensorimotor.analysis.claims import cluster_f1, paper_claims
 from sensorimotor.analysis.clusters import cluster_event_table
-from sensorimotor.report.document import h, image, p, paper_agreement, table, to_html, to_markdown
+from sensorimotor.report.document import (
+    _claims,
+    h,
+    image,
+    p,
+    paper_agreement,
+    table,
+    to_html,
+    to_markdown,
+)
 from sensorimotor.sim.database import generate
 from sensorimotor.sim.world import load_world
+from sensorimotor.stats import BEFORE, CHOSEN
 
 
 @pytest.fixture(scope="module")
@@ -38,22 +49,16 @@ def test_cluster_f1_of_an_absent_event_is_nan(analysed):
     assert math.isnan(cluster_f1(m, 0, "wall_end"))
 
 
-def test_verdict_is_none_when_a_number_is_missing():
-    assert _verdict([0.5, 0.2], 0.5 > 0.2) is True
-    assert _verdict([0.1, 0.2], 0.1 > 0.2) is False
-    assert _verdict([math.nan, 0.2], False) is None
-    assert _verdict([None, 0.2], False) is None
-
-
-def fake_report(
+def fake_inputs(
     rec_s_rooms1: tuple[float, float] = (0.057, 0.0002),
     fit_f1: float = 0.29,
     to_f1: float = 0.33,
     square: dict[str, dict[str, float]] | None = None,
-):
-    """A report of 5 seeds a cell, Rec-S on Rooms1 at (mean, sd), and a Rooms1 wall-end cluster
-    of F1 ``fit_f1`` transferred to Rooms2 at F1 ``to_f1`` (precision = recall = F1). Every
-    analysis number is 0.5 but those ``square`` gives: {model: {number: value}}."""
+) -> tuple[dict, dict, dict]:
+    """The numbers the claims read (Table I, transfers, claim numbers) of a report of 5 seeds a
+    cell, Rec-S on Rooms1 at (mean, sd), and a Rooms1 wall-end cluster of F1 ``fit_f1``
+    transferred to Rooms2 at F1 ``to_f1`` (precision = recall = F1). Every analysis number is
+    0.5 but those ``square`` gives: {model: {number: value}}."""
     means = {"s": 0.058, "sm": 0.013, "rec-s": 0.057, "rec-sm": 0.009}
     cells = {
         m: {w: {"mean": v, "sd": 0.0002, "n": 5} for w in ("square", "rooms1")}
@@ -84,8 +89,49 @@ def fake_report(
     numbers["rooms1"]["raw"] = {**per_seed, "wall_end_f1": [0.10]}
     for model, values in (square or {}).items():
         numbers["square"][model] = {**per_seed, **{k: [v] for k, v in values.items()}}
-    claims = paper_claims(table, transfers, numbers)
-    return {text.split(":")[0]: (evidence, verdict) for text, evidence, verdict in claims}
+    return table, transfers, numbers
+
+
+def fake_claims(*args, **kwargs) -> list:
+    return paper_claims(*fake_inputs(*args, **kwargs))
+
+
+def fake_report(*args, **kwargs) -> dict:
+    """``fake_claims``' verdicts by the claim's first words: (numbers, holds)."""
+    return {v.claim.split(":")[0]: (v.numbers, v.holds) for v in fake_claims(*args, **kwargs)}
+
+
+def test_every_claim_is_a_verdict_with_its_threshold_test_and_provenance():
+    claims = fake_claims()
+    assert len(claims) == 8  # ordering, Rec-S, five on Square, one transfer
+    for v in claims:
+        d = v.to_dict()
+        json.dumps(d, allow_nan=False)
+        assert all(d[k] for k in ("claim", "threshold", "test", "numbers", "where"))
+        assert v.provenance in (BEFORE, CHOSEN)
+    by_name = {v.claim.split(":")[0]: v for v in claims}
+    # the ordering and analysis thresholds were set before the first reproduction; the gap in
+    # standard errors and the transfer's "grew" gate after it
+    assert by_name["Motors grow a corner cluster"].provenance == BEFORE
+    assert "before" in by_name["Motors grow a corner cluster"].where
+    assert by_name["Memory lowers the error without motors too"].provenance == CHOSEN
+    assert by_name["Transfer"].provenance == CHOSEN
+
+
+def test_the_claims_table_says_where_each_threshold_was_set(tmp_path):
+    blocks, saved = _claims(*fake_inputs())
+    md = to_markdown(blocks, tmp_path)
+    assert "| claim | numbers | verdict | threshold set |" in md
+    assert "| set before the data: analysis/claims.py" in md
+    assert "| chosen on these data: analysis/claims.py, CLEAR_GAP_SE" in md
+    assert [v["claim"] for v in saved] == [v.claim for v in fake_claims()]
+    json.dumps(saved, allow_nan=False)
+
+
+def test_a_claim_with_a_missing_number_is_not_judged():
+    nan = {"corner_f1": math.nan}
+    assert verdict("Motors grow a corner cluster", s=nan) is None
+    assert verdict("No global notion of position", sm={"r2_x": None, "r2_y": 0.0}) is None
 
 
 def test_memory_without_motors_needs_a_gap_beyond_the_seeds_spread():

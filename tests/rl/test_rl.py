@@ -29,9 +29,10 @@ from sensorimotor.rl.features import (
     needs_runs,
     parse_features,
 )
-from sensorimotor.rl.results import bootstrap_ci, iqm, summary, verdicts
+from sensorimotor.rl.results import summary, verdicts
 from sensorimotor.rl.runner import EVAL_SEED, RLConfig, evaluate, run_grid
 from sensorimotor.sim.database import scale_sensors
+from sensorimotor.stats import BEFORE, t_interval
 
 RUNS = Path(__file__).parents[2] / "docs" / "results" / "runs"
 TINY_PPO = {"n_steps": 32, "batch_size": 64, "n_epochs": 1, "learning_rate": 3e-4,
@@ -125,18 +126,24 @@ def test_evaluation_counts_each_episode_once_and_plays_the_same_starts():
     assert got["return"] == pytest.approx(np.mean(returns))
 
 
-def test_bootstrap_interval_and_iqm_by_hand():
-    # n = 2 scores {0, 1}: resampled means are 0, 0.5, 1 with probability 1/4, 1/2, 1/4
-    assert bootstrap_ci([0.0, 1.0]) == (0.0, 1.0)
-    # {0, 0, 0, 1}: P(mean = 0) = 0.316; P(mean <= 0.5) = 0.949, P(mean <= 0.75) = 0.996
-    assert bootstrap_ci([0.0, 0.0, 0.0, 1.0]) == (0.0, 0.75)
-    assert bootstrap_ci([0.4, 0.4, 0.4]) == pytest.approx((0.4, 0.4))
-    assert iqm([1.0, 2.0, 3.0, 4.0, 100.0]) == 3.0  # the lowest and highest dropped
-    assert iqm([4.0, 1.0, 3.0, 2.0]) == 2.5
-    assert iqm([0.0, 1.0, 0.5]) == 0.5  # n = 3: nothing dropped, the mean
+def test_a_summary_has_student_t_intervals_below_ten_seeds_and_the_bootstrap_from_ten():
     s = summary([0.2, 0.4, 0.9])
+    assert (s["ci_low"], s["ci_high"]) == t_interval([0.2, 0.4, 0.9])
+    assert s["interval"] == "Student-t"
     assert s["ci_low"] <= s["mean"] <= s["ci_high"]
     assert s["per_seed"] == [0.2, 0.4, 0.9]
+    # ten seeds: the bootstrap, its numbers those of the bootstrap before stats.interval
+    ten = summary([0.1, 0.3, 0.2, 0.5, 0.4, 0.35, 0.6, 0.15, 0.25, 0.45])
+    assert ten["interval"] == "bootstrap"
+    assert (ten["ci_low"], ten["ci_high"]) == (0.24, 0.425)
+    assert (ten["iqm"], ten["iqm_ci_low"], ten["iqm_ci_high"]) == (
+        0.325,
+        0.20833333333333334,
+        0.44166666666666665,
+    )
+    one = summary([0.5])
+    assert (one["ci_low"], one["ci_high"], one["interval"]) == (None, None, None)
+    assert one["iqm_ci_low"] == one["iqm_ci_high"] == 0.5
     with pytest.raises(ValueError, match="finite"):
         summary([0.1, float("nan")])
 
@@ -148,13 +155,18 @@ def test_the_verdict_needs_every_motor_feature_set_above_raw_by_its_interval():
     results = {"raw": scores(0.1, 0.2, 0.3), "rec-sm": scores(0.5, 0.6, 0.7)}
     v = verdicts(results)
     assert v["motors_help"]["differences"]["rec-sm"]["mean"] == pytest.approx(0.4)
-    assert v["motors_help"]["supported"] is True
-    assert v["pose_beats_random"]["supported"] is None  # not run
+    assert v["motors_help"]["holds"] is True
+    assert v["motors_help"]["provenance"] == BEFORE
+    assert "Student-t" in v["motors_help"]["test"]
+    json.dumps(v, allow_nan=False)
+    assert v["pose_beats_random"]["holds"] is None  # not run
     results["sm"] = scores(0.3, 0.1, 0.2)  # as good as raw on average, not better
-    assert verdicts(results)["motors_help"]["supported"] is False
+    assert verdicts(results)["motors_help"]["holds"] is False
     results |= {"pose": scores(0.9, 0.8, 1.0), "random": scores(0.0, 0.1, 0.0)}
-    assert verdicts(results)["pose_beats_random"]["supported"] is True
-    assert verdicts({"pose": scores(0.5)})["motors_help"]["supported"] is None
+    assert verdicts(results)["pose_beats_random"]["holds"] is True
+    assert verdicts({"pose": scores(0.5)})["motors_help"]["holds"] is None
+    two = {"pose": scores(0.9, 0.9), "random": scores(0.1, 0.1)}  # interval [0.8, 0.8]
+    assert verdicts(two)["pose_beats_random"]["holds"] is None  # below MIN_SEEDS: not judged
     other = {f: {"success_stochastic": r["success"]} for f, r in results.items()}
     assert verdicts(other, "success_stochastic") == verdicts(results)  # the score is chosen
 

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 from sensorimotor.errors import InputError
-from sensorimotor.learn.evaluate import Run, baselines, evaluate_run, mean_sd
+from sensorimotor.learn.evaluate import Run, baselines, evaluate_run
 from sensorimotor.learn.models import KINDS, REC_S, REC_SM, SM, S
 from sensorimotor.learn.runs import setting_changes
 from sensorimotor.sim.database import Database
+from sensorimotor.stats import mean_sd
 
 # The paper's Table I: models trained on Square, tested on each world (sum over sensors).
 PAPER_TABLE_I = {

@@ -8,8 +8,9 @@ Raw has no seeds of its own: it is mapped once per seed of the reproduction with
 (k-means, EM and the planner's start/goal pairs), so its spread is the map's own; a trained
 run is mapped with its own seed, so its spread is the representation's and the map's together.
 
-Numbers aggregate over seeds as mean and sample sd (n - 1; none for one seed). Three claims
-are judged per world and representation on the **paired** per-seed difference (the same
+Numbers aggregate over seeds as mean and sample sd (``stats.describe``: n - 1; 0 with n = 1,
+shown without ±). Three claims (each a ``stats.Verdict``, its margin set before the data) are
+judged per world and representation on the **paired** per-seed difference (the same
 seed, the same test split), each with a minimum effect ``MARGINS``:
 
 - *the map predicts the next cell better than first-order Markov*: bits/step markov - map;
@@ -36,6 +37,15 @@ from sensorimotor.jobs.cache import read_key, stage_key
 from sensorimotor.jobs.workers import Job
 from sensorimotor.learn.models import KINDS
 from sensorimotor.report.document import h, image, p, table
+from sensorimotor.stats import (
+    BEFORE,
+    Verdict,
+    describe,
+    mean_sd,
+    paired_differences,
+    standard_error,
+    word,
+)
 from sensorimotor.version import __version__
 
 PAIRS = {
@@ -148,33 +158,55 @@ def _get(metrics: dict, path: str):
 
 
 def _stats(values: list) -> dict:
-    """mean, sd (n - 1; None for one value), n and the values; mean None if any is None."""
+    """mean, sd, n (``stats.describe``: sd 0.0 for one value) and the values; mean and sd None
+    if any is None."""
     if not values or any(v is None for v in values):
         return {"mean": None, "sd": None, "n": len(values), "values": values}
-    x = np.asarray(values, dtype=np.float64)
-    sd = float(x.std(ddof=1)) if len(x) > 1 else None
-    return {"mean": float(x.mean()), "sd": sd, "n": len(x), "values": [float(v) for v in x]}
+    return {**describe(values), "values": [float(v) for v in values]}
 
 
-def verdict(better: list, worse: list, margin: float, trials: list | None = None) -> dict:
-    """The paired per-seed difference ``better - worse``: its mean, sd, standard error and
-    whether the claim holds (module docstring); ``holds`` None where a number is missing.
-    ``trials``: each seed's number of trials when ``better`` and ``worse`` are success rates;
-    the standard error is then at least the binomial one of the mean difference (so that one
-    seed of 100 planning pairs is judged on its sampling error, about 0.07, too)."""
-    if not better or any(v is None for v in [*better, *worse]):
-        return {"mean": None, "sd": None, "se": None, "n": len(better), "holds": None}
-    b, w = np.asarray(better, dtype=np.float64), np.asarray(worse, dtype=np.float64)
-    d = b - w
-    n = len(d)
-    sd = float(d.std(ddof=1)) if n > 1 else None
-    se = None if sd is None else sd / math.sqrt(n)
-    if trials is not None and all(t for t in trials):
-        var = (b * (1 - b) + w * (1 - w)) / np.asarray(trials, dtype=np.float64)
-        binomial = float(math.sqrt(var.sum()) / n)
-        se = binomial if se is None else max(se, binomial)
-    holds = bool(d.mean() > margin and (se is None or d.mean() > 2 * se))
-    return {"mean": float(d.mean()), "sd": sd, "se": se, "n": n, "holds": holds}
+WHERE = "experiments/map.py, MARGINS, commit cf27762, before docs/results/map"
+TEST = (
+    "mean of the paired per-seed differences above the margin and, with two seeds or more, "
+    "above 2 standard errors over seeds (sd / sqrt(n))"
+)
+BINOMIAL = (
+    "; the standard error at least the binomial one of the success rates' pairs, also with "
+    "one seed (since 89d4108, after docs/results/map's first maps)"
+)
+
+
+def verdict(
+    better: list, worse: list, margin: float, trials: list | None = None, claim: str = ""
+) -> Verdict:
+    """The claim ``better - worse`` (``stats.paired_differences``, seed by seed) tested: its
+    numbers (mean, sd, standard error, n, margin) and whether it holds (module docstring);
+    ``holds`` None where a number is missing. ``trials``: each seed's number of trials when
+    ``better`` and ``worse`` are success rates; the standard error is then at least the
+    binomial one of the mean difference (so that one seed of 100 planning pairs is judged on
+    its sampling error, about 0.07, too)."""
+    numbers = {"mean": None, "sd": None, "se": None, "n": len(better), "margin": margin}
+    holds = None
+    if better and not any(v is None for v in [*better, *worse]):
+        d = paired_differences(better, worse)
+        mean, sd = mean_sd(d)
+        se = standard_error(d)
+        if trials is not None and all(t for t in trials):
+            b, w = np.asarray(better, dtype=np.float64), np.asarray(worse, dtype=np.float64)
+            var = (b * (1 - b) + w * (1 - w)) / np.asarray(trials, dtype=np.float64)
+            binomial = float(math.sqrt(var.sum()) / len(d))
+            se = binomial if se is None else max(se, binomial)
+        holds = mean > margin and (se is None or mean > 2 * se)
+        numbers |= {"mean": mean, "sd": sd, "se": se}
+    return Verdict(
+        claim=claim,
+        threshold=f"mean paired difference above {margin:g}",
+        test=TEST + (BINOMIAL if trials is not None else ""),
+        numbers=numbers,
+        holds=holds,
+        provenance=BEFORE,
+        where=WHERE,
+    )
 
 
 def aggregate(per_map: list[tuple[str, str, int, dict]]) -> dict:
@@ -194,13 +226,10 @@ def aggregate(per_map: list[tuple[str, str, int, dict]]) -> dict:
                 "seeds": [s for s, _ in maps],
                 "metrics": {key: _stats(v) for key, v in values.items()},
                 "claims": {
-                    c: {
-                        **verdict(
-                            values[b], values[w], MARGINS[c], pairs if c == "plans" else None
-                        ),
-                        "margin": MARGINS[c],
-                    }
-                    for c, (_, b, w) in CLAIMS.items()
+                    c: verdict(
+                        values[b], values[w], MARGINS[c], pairs if c == "plans" else None, what
+                    ).to_dict()
+                    for c, (what, b, w) in CLAIMS.items()
                 },
             }
     return out
@@ -232,15 +261,16 @@ def _cell(stats: dict, spec: str) -> str:
     if stats["mean"] is None:
         return "n/a"
     text = format(stats["mean"], spec)
-    return text if stats["sd"] is None else f"{text} ± {format(stats['sd'], spec)}"
+    return f"{text} ± {format(stats['sd'], spec)}" if stats["n"] > 1 else text
 
 
 def _claim_text(v: dict) -> str:
+    """A claim's cell: its verdict word, the mean paired difference and its standard error."""
     if v["holds"] is None:
         return "n/a"
-    spread = "one seed" if v["se"] is None else f"SE {v['se']:.3f}"
-    word = "**holds**" if v["holds"] else "does not hold"
-    return f"{word}: {v['mean']:+.3f} ({spread})"
+    n = v["numbers"]
+    spread = "one seed" if n["se"] is None else f"SE {n['se']:.3f}"
+    return f"{word(v['holds'], '**holds**', 'does not hold')}: {n['mean']:+.3f} ({spread})"
 
 
 def section(rep, found: dict) -> list:

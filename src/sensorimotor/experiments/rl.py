@@ -2,14 +2,14 @@
 
 The paper's conclusion plans a reinforcement-learning test of the representations. This
 experiment runs ``sensorimotor rl``'s grid (``rl.runner.run_grid``: the same PPO on every
-feature set, many seeds, bootstrap statistics) on the three tasks in Rooms1, with the encoders
-this reproduction trained on Rooms1 (``rep.run_dir("rooms1", model, seed)``; RL seed k on
-encoder seed k), and evaluates every final policy unchanged in Square and Rooms2 (those that
-can hold the task: ``doorway`` needs two named rooms, Square names one). Its agents are jobs of
-the reproduction's job runner; each task's grid lives in ``OUT/rl/{task}__{key}/``, ``key`` a
-hash of everything its agents depend on (the PPO and evaluation settings, the bytes of every
-encoder's weights, the package version): a rerun trains nothing, a retrained encoder gets new
-agents.
+feature set, many seeds, confidence intervals over seeds) on the three tasks in Rooms1, with
+the encoders this reproduction trained on Rooms1 (``rep.run_dir("rooms1", model, seed)``; RL
+seed k on encoder seed k), and evaluates every final policy unchanged in Square and Rooms2
+(those that can hold the task: ``doorway`` needs two named rooms, Square names one). Its
+agents are jobs of the reproduction's job runner; each task's grid lives in
+``OUT/rl/{task}__{key}/``, ``key`` a hash of everything its agents depend on (the PPO and
+evaluation settings, the bytes of every encoder's weights, the package version): a rerun trains
+nothing, a retrained encoder gets new agents.
 
 The report's headline score is the *stochastic* policy's success (``rl.results.HEADLINE``:
 DESIGN.md says why); the deterministic one is shown beside it.
@@ -25,7 +25,15 @@ from sensorimotor.files import file_hash
 from sensorimotor.jobs.cache import stage_key
 from sensorimotor.learn.runs import count
 from sensorimotor.report.document import Block, h, image, p, table
-from sensorimotor.rl.results import CLAIM, HEADLINE, MIN_SEEDS, THRESHOLD
+from sensorimotor.rl.results import (
+    CLAIM,
+    HEADLINE,
+    MIN_SEEDS,
+    THRESHOLD,
+    fmt_ci,
+    verdict_holds,
+)
+from sensorimotor.stats import word
 from sensorimotor.version import __version__
 
 WORLD = "rooms1"  # where the agents learn, on encoders trained there
@@ -177,19 +185,29 @@ SCORES = {HEADLINE: "stochastic", "success": "deterministic"}
 
 
 def _ci(s: dict) -> str:
-    return f"{s['mean']:.2f} [{s['ci_low']:.2f}, {s['ci_high']:.2f}]"
+    return fmt_ci(s)
 
 
 def _diff(d: dict) -> str:
-    return f"{d['mean']:+.2f} [{d['ci_low']:+.2f}, {d['ci_high']:+.2f}]"
+    return fmt_ci(d, "+")
+
+
+def _interval(rl: dict) -> str:
+    """What the table's brackets are: the 95 % interval ``stats.interval`` chose (rl.json
+    written before it: the bootstrap)."""
+    if rl["seeds"] < 2:
+        return "mean, IQM; one seed: no interval"
+    first = next(iter(rl["results"].values()))[HEADLINE]
+    return f"mean [95 % {first.get('interval', 'bootstrap')} CI], IQM"
 
 
 def verdict_lines(rl: dict, score: str = HEADLINE) -> list[tuple[str, bool | None]]:
     """The verdicts of one task's ``rl.json`` on ``score``, each a sentence and whether it
     holds (None: not judged): the sanity check "pose clearly above random", the paper's
     expectation, and whether the motor-trained encoders beat the untrained one too (else the
-    help is not learned). All read the 95 % bootstrap CI of paired per-seed differences
-    (``rl.results.verdicts``); with fewer than ``MIN_SEEDS`` seeds neither is judged."""
+    help is not learned). All read the 95 % CI of paired per-seed differences
+    (``rl.results.verdicts``: Student-t below 10 seeds, bootstrap from 10); with fewer than
+    ``MIN_SEEDS`` seeds neither is judged."""
     how = SCORES.get(score, score)
     v = rl["verdicts"][score]
     if rl["seeds"] < MIN_SEEDS:
@@ -198,31 +216,32 @@ def verdict_lines(rl: dict, score: str = HEADLINE) -> list[tuple[str, bool | Non
                 (f"{CLAIM} ({how}): {why}.", None)]  # fmt: skip
     lines = []
     pose = v["pose_beats_random"]
-    if pose["supported"] is not None:
-        held = "holds" if pose["supported"] else "does NOT hold"
+    if verdict_holds(pose) is not None:
+        held = word(verdict_holds(pose), "holds", "does NOT hold")
         lines.append(
             (
                 f"pose clearly above random ({how} success; threshold: the 95 % CI of pose "
                 f"minus random, paired by seed, above 0): {held}, {_diff(pose['difference'])}.",
-                pose["supported"],
+                verdict_holds(pose),
             )
         )
     motors = v["motors_help"]
-    if motors["supported"] is not None:
-        held = "supported" if motors["supported"] else "NOT supported"
+    if verdict_holds(motors) is not None:
+        held = word(verdict_holds(motors), "supported", "NOT supported")
         diffs = ", ".join(f"{f} - raw {_diff(d)}" for f, d in motors["differences"].items())
+        threshold = motors.get("threshold", THRESHOLD)  # what the file was judged by
         lines.append(
-            (f"{CLAIM} ({how} success; {THRESHOLD}): {held}: {diffs}.", motors["supported"])
+            (f"{CLAIM} ({how} success; {threshold}): {held}: {diffs}.", verdict_holds(motors))
         )
-    learned = v.get("motors_beat_random", {"supported": None})
-    if learned["supported"] is not None:
-        held = "holds" if learned["supported"] else "does NOT hold"
+    learned = v.get("motors_beat_random", {"holds": None})
+    if verdict_holds(learned) is not None:
+        held = word(verdict_holds(learned), "holds", "does NOT hold")
         diffs = ", ".join(f"{f} - random {_diff(d)}" for f, d in learned["differences"].items())
         lines.append(
             (
                 f"the motor-trained encoders also beat the untrained one, random ({how} "
                 f"success; the same threshold against random): {held}: {diffs}.",
-                learned["supported"],
+                verdict_holds(learned),
             )
         )
     return lines
@@ -246,8 +265,8 @@ def _task_blocks(rep, task: str, entry: dict) -> list[Block]:
     blocks = [
         h(3, f"{task} in {rl['world']}"),
         p(
-            f"Final success rate over {count(rl['seeds'], 'seed')} (mean "
-            f"[95 % bootstrap CI], IQM) after "
+            f"Final success rate over {count(rl['seeds'], 'seed')} "
+            f"({_interval(rl)}) after "
             f"{rl['steps']:,} steps, {rl['eval_episodes']} evaluation episodes each; transfer: "
             f"the same policies, unchanged, in the other worlds (means); the mean return in "
             f"{rl['world']}. From "

@@ -34,14 +34,14 @@ import numpy as np
 
 from sensorimotor.analysis.analyze import with_raw
 from sensorimotor.errors import InputError
-from sensorimotor.experiments.scaling_report import finite, plot_errors, section, verdicts
+from sensorimotor.experiments.scaling_report import plot_errors, section, verdicts
 from sensorimotor.files import file_hash, read_json, write_json_atomic
 from sensorimotor.jobs.cache import read_key, stage_key
 from sensorimotor.jobs.workers import Job
-from sensorimotor.learn.evaluate import mean_sd
 from sensorimotor.learn.models import KINDS
 from sensorimotor.learn.runs import run_name
 from sensorimotor.pipeline.stages import analysis_job, eval_job, train_and_tell, train_config
+from sensorimotor.stats import describe, mean_sd, present
 from sensorimotor.version import __version__
 
 WORLD = "rooms2"  # the built-in world of the ray and noise conditions (module docstring)
@@ -403,7 +403,8 @@ def run_conditions(ctx, size: Size, conds: Sequence[Condition], device: str = "c
 
 
 def _mean(values: list) -> float | None:
-    values = [v for v in values if finite(v) is not None]
+    """The mean of the numbers that are there (``stats.present``); None if none is."""
+    values = present(values)
     return mean_sd(values)[0] if values else None
 
 
@@ -415,8 +416,7 @@ def condition_numbers(cond, evals, test_names, seen_names, base, numbers) -> dic
     for kind in KINDS:
         mine = [e for e in evals if e["model"] == kind]
         values = [float(np.mean([e["errors"][w] for w in test_names])) for e in mine]
-        mean, sd = mean_sd(values)
-        errors[kind] = {"mean": mean, "sd": sd, "n": len(values), "values": values}
+        errors[kind] = {**describe(values), "values": values}
         if seen_names:
             seen[kind] = float(np.mean([e["errors"][w] for e in mine for w in seen_names]))
     claims = {
@@ -436,7 +436,9 @@ def condition_numbers(cond, evals, test_names, seen_names, base, numbers) -> dic
         "copy_last": float(np.mean([b["copy_last"] for b in base])),
         "mean_baseline": float(np.mean([b["mean"] for b in base])),
         "claims": claims,
-        "verdicts": verdicts({k: v["mean"] for k, v in errors.items()}, claims),
+        "verdicts": [
+            v.to_dict() for v in verdicts({k: v["mean"] for k, v in errors.items()}, claims)
+        ],
     }
 
 

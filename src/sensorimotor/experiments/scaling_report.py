@@ -9,7 +9,6 @@ view' cluster and decodes the distance to the wall behind with an R² at least 0
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 from sensorimotor.analysis.analyze import short_name, with_raw
@@ -17,48 +16,50 @@ from sensorimotor.analysis.tables import paper_ordering_holds
 from sensorimotor.learn.models import KINDS, REC_SM, SM, S
 from sensorimotor.learn.runs import count
 from sensorimotor.report.document import Block, h, image, p, table
+from sensorimotor.stats import BEFORE, Verdict, is_missing, word
 
 GAP = 0.1  # the corner and memory thresholds of analysis.claims
-
+WHERE = (
+    "analysis/claims.py's thresholds for Square (commits d9848fc and 2f8a662, before the first "
+    "published reproduction), taken over in 833b62f before docs/results/scaling"
+)
+TEST = "means over seeds and test databases compared; no test of significance"
 
 
 def finite(v) -> float | None:
     """``v`` as a float, or None where it is missing or NaN (strict JSON has no NaN)."""
-    return None if v is None or (isinstance(v, float) and math.isnan(v)) else float(v)
+    return None if is_missing(v) else float(v)
 
 
-def _word(ok: bool | None) -> str:
-    return "n/a" if ok is None else ("holds" if ok else "fails")
+def verdicts(errors: dict[str, float], claims: dict[str, dict]) -> list[Verdict]:
+    """A verdict on each paper finding (its ``claim``: "ordering", "corner cluster",
+    "memory"), with its threshold (``analysis.claims``' own): the ordering of the test errors,
+    the corner cluster and the memory. Not judged (None) where a number is missing (no corner in
+    the test worlds, a model not trained)."""
 
+    def verdict(finding: str, threshold: str, numbers: str, holds: bool | None) -> Verdict:
+        return Verdict(finding, threshold, TEST, numbers, holds, BEFORE, WHERE)
 
-def verdicts(errors: dict[str, float], claims: dict[str, dict]) -> list[dict]:
-    """A verdict on each paper finding, with its threshold (``analysis.claims``' own): the
-    ordering of the test errors, the corner cluster and the memory. "n/a" where a number is
-    missing (no corner in the test worlds, a model not trained)."""
-    out = []
     have = {k: v for k, v in errors.items() if finite(v) is not None}
-    out.append(
-        {
-            "finding": "ordering",
-            "threshold": "test error Rec-SM < SM < both Rec-S and S",
-            "numbers": ", ".join(f"{k} {v:.5f}" for k, v in have.items()),
-            "verdict": _word(paper_ordering_holds(have)),
-        }
-    )
+    out = [
+        verdict(
+            "ordering",
+            "test error Rec-SM < SM < both Rec-S and S",
+            ", ".join(f"{k} {v:.5f}" for k, v in have.items()),
+            paper_ordering_holds(have),
+        )
+    ]
     corner = {k: finite(claims.get(k, {}).get("corner_f1")) for k in with_raw()}
     ok = None
     if None not in corner.values():
         ok = min(corner[SM], corner[REC_SM]) >= max(corner[S], corner["raw"]) + GAP
     out.append(
-        {
-            "finding": "corner cluster",
-            "threshold": f"corner F1 of SM and of Rec-SM at least {GAP:g} above S's and the raw "
-            "readings'",
-            "numbers": ", ".join(
-                f"{k} {'n/a' if v is None else f'{v:.2f}'}" for k, v in corner.items()
-            ),
-            "verdict": _word(ok),
-        }
+        verdict(
+            "corner cluster",
+            f"corner F1 of SM and of Rec-SM at least {GAP:g} above S's and the raw readings'",
+            ", ".join(f"{k} {'n/a' if v is None else f'{v:.2f}'}" for k, v in corner.items()),
+            ok,
+        )
     )
     mem = {
         k: (
@@ -71,18 +72,22 @@ def verdicts(errors: dict[str, float], claims: dict[str, dict]) -> list[dict]:
     if None not in (mem[REC_SM][0], mem[REC_SM][1], mem[S][1]):
         ok = mem[REC_SM][0] > 1 and mem[REC_SM][1] >= mem[S][1] + GAP
     out.append(
-        {
-            "finding": "memory",
-            "threshold": "Rec-SM has more than one 'nothing in view' cluster and its distance-"
+        verdict(
+            "memory",
+            "Rec-SM has more than one 'nothing in view' cluster and its distance-"
             f"behind R² is at least {GAP:g} above S's",
-            "numbers": ", ".join(
+            ", ".join(
                 f"{k} {'n/a' if c is None else f'{c:.1f}'} clusters, R² {'n/a' if r is None else f'{r:.2f}'}"
                 for k, (c, r) in mem.items()
             ),
-            "verdict": _word(ok),
-        }
+            ok,
+        )
     )
     return out
+
+
+def _word(holds: bool | None) -> str:
+    return word(holds, "holds", "fails")
 
 
 def plot_errors(conds: dict, path: Path) -> Path:
@@ -191,37 +196,37 @@ def section(rep, found: dict) -> list[Block]:
         blocks.append(
             image(chart, "Test error as a share of the previous-reading baseline's (dashed: 1)")
         )
-    findings = [v["finding"] for v in next(iter(conds.values()))["verdicts"]]
+    findings = [v["claim"] for v in next(iter(conds.values()))["verdicts"]]
     rows = []
     for f in findings:
         row = [f]
         for c in conds.values():
-            v = next(v for v in c["verdicts"] if v["finding"] == f)
-            row.append(f"{v['verdict']} ({v['numbers']})")
+            v = next(v for v in c["verdicts"] if v["claim"] == f)
+            row.append(f"{_word(v['holds'])} ({v['numbers']})")
         rows.append(row)
     blocks.append(h(3, "Verdicts"))
-    thresholds = "; ".join(
-        f"**{v['finding']}**: {v['threshold']}" for v in next(iter(conds.values()))["verdicts"]
-    )
+    first = next(iter(conds.values()))["verdicts"]
+    thresholds = "; ".join(f"**{v['claim']}**: {v['threshold']}" for v in first)
     blocks.append(
         p(
             f"Each finding holds when its threshold is met: {thresholds}. The thresholds are "
             "`analysis.claims`' for Square; they compare means over seeds (and test databases), "
-            "with no test of significance: the ± columns give the spread over seeds."
+            "with no test of significance: the ± columns give the spread over seeds. "
+            f"Thresholds {first[0]['provenance']}: {first[0]['where']}."
         )
     )
     blocks.append(table(["Finding", *conds], rows))
     failed = [
-        f"{v['finding']} in {name}"
+        f"{v['claim']} in {name}"
         for name, c in conds.items()
         for v in c["verdicts"]
-        if v["verdict"] == "fails"
+        if v["holds"] is False
     ]
     missing = [
-        f"{v['finding']} in {name}"
+        f"{v['claim']} in {name}"
         for name, c in conds.items()
         for v in c["verdicts"]
-        if v["verdict"] == "n/a"
+        if v["holds"] is None
     ]
     blocks.append(
         p(

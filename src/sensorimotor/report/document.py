@@ -441,16 +441,21 @@ def _maps(rep) -> list[Block]:
     return b
 
 
-def _claims(rep, numbers: dict) -> tuple[list[Block], list]:
-    """The paper's claims, each with its numbers and verdict."""
-    b: list[Block] = []
-    b.append(h(2, "The paper's claims, tested"))
-    rows_c = [
-        [c, nums, "supported" if ok else ("not supported" if ok is not None else "n/a")]
-        for c, nums, ok in paper_claims(rep.table, rep.transfers, numbers)
-    ]
-    b.append(table(["claim", "numbers", "verdict"], rows_c))
-    return b, rows_c
+def _claims(table_one: dict, transfers: dict, numbers: dict) -> tuple[list[Block], list]:
+    """The paper's claims, each with its numbers, verdict and where its threshold was set
+    (from numbers only: Table I, the transfer analyses, the claim numbers)."""
+    verdicts = paper_claims(table_one, transfers, numbers)
+    b: list[Block] = [h(2, "The paper's claims, tested")]
+    rows = [[v.claim, v.numbers, v.word(), f"{v.provenance}: {v.where}"] for v in verdicts]
+    b.append(table(["claim", "numbers", "verdict", "threshold set"], rows))
+    b.append(
+        p(
+            "'threshold set' says whether a claim's threshold was fixed before any reproduction's "
+            "numbers were seen or chosen after them, and where. `claims.json` holds each "
+            "verdict with its threshold and test."
+        )
+    )
+    return b, [v.to_dict() for v in verdicts]
 
 
 def write_report(
@@ -466,7 +471,7 @@ def write_report(
     out = rep.out
     worlds = list(rep.worlds)  # trained on; every model is tested on all of rep.data
     numbers = claim_numbers(rep.analyses, rep.runs, worlds)
-    claims, rows_c = _claims(rep, numbers)
+    claims, verdicts = _claims(rep.table, rep.transfers, numbers)
     b = [
         *_settings(rep, argv, hardware),
         *_timings(rep, figure_seconds),
@@ -482,5 +487,5 @@ def write_report(
     page = to_html(b, "sensorimotor reproduction report")
     write_text_atomic(out / "report.md", md)
     write_text_atomic(out / "report.html", page)
-    write_json_atomic(out / "claims.json", {"numbers": numbers, "claims": rows_c})
+    write_json_atomic(out / "claims.json", {"numbers": numbers, "claims": verdicts})
     return out / "report.md", out / "report.html"

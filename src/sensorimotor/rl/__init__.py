@@ -4,7 +4,7 @@ The paper's conclusion plans to use the learned representations in a reinforceme
 task. This layer runs the S-RL Toolbox's protocol on today's tools: the same algorithm
 (stable-baselines3 PPO) on each feature set (``features.feature_sets()``: the true pose and the
 raw readings as references, the trained encoders' z_s, an untrained encoder), many seeds,
-bootstrap confidence intervals (``results``). ``runner.run_grid`` is what ``sensorimotor rl``
+confidence intervals over seeds (``results``, on ``stats``). ``runner.run_grid`` is what ``sensorimotor rl``
 calls. stable-baselines3 is the ``[rl]`` extra: ``check_extra`` says so in one line.
 
 The trained encoders are read from a folder of training runs named ``{world}__{kind}__s{seed}``

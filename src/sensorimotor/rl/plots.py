@@ -30,10 +30,11 @@ def colors(names) -> dict[str, str]:
 
 
 def rl_figure(rl: dict) -> Figure:
-    """Left: success rate against environment steps, mean over seeds with its 95 % bootstrap
-    band, one colour per feature set; solid: the deterministic policy, dashed: the stochastic
-    one. Middle and right: final success per feature set (bars: mean, whiskers: CI) in the
-    task's world and in each transfer world, deterministic then stochastic policy."""
+    """Left: success rate against environment steps, mean over seeds with its 95 % interval
+    (``stats.interval``; none with one seed) as a band, one colour per feature set; solid: the
+    deterministic policy, dashed: the stochastic one. Middle and right: final success per
+    feature set (bars: mean, whiskers: CI) in the task's world and in each transfer world,
+    deterministic then stochastic policy."""
     fig = Figure(figsize=(15, 4.2), layout="constrained")
     curves, *bars = fig.subplots(1, 3, width_ratios=[3, 2, 2])
     palette = colors(rl["results"])
@@ -44,9 +45,8 @@ def rl_figure(rl: dict) -> Figure:
         for score, style in (("success", "-"), ("success_stochastic", "--")):
             curves.plot(steps, c[score]["mean"], style, color=color,
                         label=name if style == "-" else None)  # fmt: skip
-            curves.fill_between(
-                steps, c[score]["ci_low"], c[score]["ci_high"], color=color, alpha=0.12
-            )
+            low, high = (_or_mean(c[score][k], c[score]["mean"]) for k in ("ci_low", "ci_high"))
+            curves.fill_between(steps, low, high, color=color, alpha=0.12)
     curves.set(
         xlabel="environment steps",
         ylabel=f"success rate ({rl['eval_episodes']} episodes)",
@@ -64,6 +64,11 @@ def rl_figure(rl: dict) -> Figure:
     return fig
 
 
+def _or_mean(bounds: list, mean) -> np.ndarray:
+    """Interval bounds with the mean where there is none (one seed: no interval, no band)."""
+    return np.array([m if b is None else b for b, m in zip(bounds, mean, strict=True)], float)
+
+
 def _final_bars(ax, rl: dict, score: str) -> None:
     worlds = [rl["world"], *rl["transfer"]]
     names = list(rl["results"])
@@ -74,9 +79,9 @@ def _final_bars(ax, rl: dict, score: str) -> None:
             for r in rl["results"].values()
         ]
         mean = np.array([s["mean"] for s in stats])
-        err = np.array(
-            [[m - s["ci_low"], s["ci_high"] - m] for m, s in zip(mean, stats, strict=True)]
-        ).T
+        low = _or_mean([s["ci_low"] for s in stats], mean)
+        high = _or_mean([s["ci_high"] for s in stats], mean)
+        err = np.clip([mean - low, high - mean], 0.0, None)  # no rounding below 0
         x = np.arange(len(names)) + (k - (len(worlds) - 1) / 2) * width
         ax.bar(x, mean, width, yerr=err, capsize=2, label=world)
     ax.set_xticks(np.arange(len(names)), names, rotation=30)

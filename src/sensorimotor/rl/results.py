@@ -1,9 +1,11 @@
-"""Statistics over seeds, as rliable reports them: mean, 95 % bootstrap CI, interquartile mean.
+"""Statistics over seeds, as rliable reports them: mean, 95 % CI, interquartile mean; verdicts.
 
 With a handful of seeds a mean alone says little (Agarwal et al., "Deep RL at the edge of the
-statistical precipice", 2021): every score here comes with a percentile-bootstrap confidence
-interval over seeds (fixed resampling seed: the same scores give the same bytes) and the
-interquartile mean (IQM), the mean of the middle 50 % of the scores.
+statistical precipice", 2021): every score here comes with a 95 % confidence interval of its
+mean over seeds (``stats.interval``: Student-t below 10 seeds, the percentile bootstrap from 10
+up, a fixed resampling seed: the same scores give the same bytes) and the interquartile mean
+(IQM), the mean of the middle 50 % of the scores, with its bootstrap interval. The verdicts are
+``stats.Verdict``s on paired per-seed differences.
 """
 
 from __future__ import annotations
@@ -14,52 +16,50 @@ from collections.abc import Sequence
 import numpy as np
 
 from sensorimotor.learn.models import KINDS
+from sensorimotor.stats import (
+    BEFORE,
+    Verdict,
+    bootstrap_interval,
+    interval,
+    interval_name,
+    iqm,
+    paired_differences,
+)
 
-BOOTSTRAP = 10_000  # resamples
-CONFIDENCE = 0.95
-BOOTSTRAP_SEED = 0  # the resampling generator's seed: results are bytes-reproducible
-
-
-def iqm(values: Sequence[float] | np.ndarray) -> float:
-    """Interquartile mean: drop the lowest and the highest ``floor(n / 4)`` values, average the
-    rest (``scipy.stats.trim_mean(values, 0.25)``, what rliable computes)."""
-    v = np.sort(np.asarray(values, dtype=np.float64).ravel())
-    cut = len(v) // 4
-    return float(v[cut : len(v) - cut].mean())
-
-
-def bootstrap_ci(
-    values: Sequence[float] | np.ndarray, statistic=np.mean, resamples: int = BOOTSTRAP
-) -> tuple[float, float]:
-    """Percentile bootstrap ``CONFIDENCE`` interval of ``statistic`` over ``values`` (n,):
-    resample n values with replacement ``resamples`` times; the 2.5 and 97.5 percentiles."""
-    v = np.asarray(values, dtype=np.float64).ravel()
-    rng = np.random.default_rng(BOOTSTRAP_SEED)
-    samples = v[rng.integers(0, len(v), size=(resamples, len(v)))]  # (B, n)
-    stats = (
-        np.array([statistic(s) for s in samples]) if statistic is not np.mean else samples.mean(1)
-    )
-    alpha = (1.0 - CONFIDENCE) / 2.0
-    low, high = np.quantile(stats, [alpha, 1.0 - alpha])
-    return float(low), float(high)
+IQM_RESAMPLES = 2_000  # the IQM's bootstrap (a statistic per resample: slower than the mean's)
 
 
 def summary(values: Sequence[float]) -> dict:
-    """``{mean, ci_low, ci_high, iqm, iqm_ci_low, iqm_ci_high, per_seed}`` of per-seed scores."""
+    """``{mean, ci_low, ci_high, interval, iqm, iqm_ci_low, iqm_ci_high, per_seed}`` of per-seed
+    scores: the mean's 95 % interval (``stats.interval``; None with one seed, ``interval``
+    names it) and the IQM's bootstrap interval."""
     v = [float(x) for x in values]
     if not v or not all(math.isfinite(x) for x in v):
         raise ValueError(f"scores must be finite and not empty, got {v}")
-    low, high = bootstrap_ci(v)
-    iqm_low, iqm_high = bootstrap_ci(v, iqm, resamples=2_000)
+    ci = interval(v)
+    iqm_low, iqm_high = bootstrap_interval(v, iqm, resamples=IQM_RESAMPLES)
     return {
         "mean": float(np.mean(v)),
-        "ci_low": low,
-        "ci_high": high,
+        "ci_low": None if ci is None else ci[0],
+        "ci_high": None if ci is None else ci[1],
+        "interval": interval_name(len(v)),
         "iqm": iqm(v),
         "iqm_ci_low": iqm_low,
         "iqm_ci_high": iqm_high,
         "per_seed": v,
     }
+
+
+def fmt_ci(s: dict, sign: str = "") -> str:
+    """A ``summary`` as "mean [low, high]"; "mean (one seed)" without an interval."""
+    if s["ci_low"] is None:
+        return f"{s['mean']:{sign}.2f} (one seed)"
+    return f"{s['mean']:{sign}.2f} [{s['ci_low']:{sign}.2f}, {s['ci_high']:{sign}.2f}]"
+
+
+def verdict_holds(v: dict) -> bool | None:
+    """A verdict's ``holds`` (rl.json written before ``stats.Verdict`` says ``supported``)."""
+    return v["holds"] if "holds" in v else v.get("supported")
 
 
 def summary_lines(rl: dict) -> list[str]:
@@ -71,71 +71,97 @@ def summary_lines(rl: dict) -> list[str]:
         for name, r in rl["results"].items():
             ok = r[score]
             where = "".join(f", {w} {t[score]['mean']:.2f}" for w, t in r["transfer"].items())
-            lines.append(
-                f"  {name}: {ok['mean']:.2f} [{ok['ci_low']:.2f}, {ok['ci_high']:.2f}] "
-                f"IQM {ok['iqm']:.2f}{where}"
-            )
+            lines.append(f"  {name}: {fmt_ci(ok)} IQM {ok['iqm']:.2f}{where}")
         v = rl["verdicts"][score]
-        if v["motors_help"]["supported"] is not None:
-            yes = "supported" if v["motors_help"]["supported"] else "not supported"
+        if verdict_holds(v["motors_help"]) is not None:
+            yes = "supported" if verdict_holds(v["motors_help"]) else "not supported"
             lines.append(f"  {CLAIM}: {yes}")
-        if v["pose_beats_random"]["supported"] is not None:
-            d = v["pose_beats_random"]["difference"]
-            lines.append(
-                f"  pose - random: {d['mean']:+.2f} [{d['ci_low']:+.2f}, {d['ci_high']:+.2f}]"
-            )
+        if verdict_holds(v["pose_beats_random"]) is not None:
+            lines.append(f"  pose - random: {fmt_ci(v['pose_beats_random']['difference'], '+')}")
     return lines
 
 
 HEADLINE = "success_stochastic"
 """The score a report leads with: the success rate of the policy PPO trains, its actions sampled
 (DESIGN.md, "Reinforcement learning": the mean action rewards reflexes and fails the oracle)."""
-MIN_SEEDS = 3  # fewer seeds: a report states no verdict (a bootstrap over 2 values says nothing)
-MOTOR_FEATURES = tuple(k for k in KINDS if KINDS[k].motors)  # encoders trained with motors
+MIN_SEEDS = 3  # fewer seeds: no verdict (an interval over 2 values says next to nothing)
+
+
+def motor_features() -> tuple[str, ...]:
+    """The encoders trained with the motor commands, from the kind registry."""
+    return tuple(k for k in KINDS if KINDS[k].motors)
+
+
 CLAIM = "features learned with motors help the agent more than raw readings"
 THRESHOLD = (
     "supported when, for every motor-trained feature set in the grid (sm, rec-sm), the 95 % "
-    "bootstrap CI of its mean final success minus raw's, paired by seed, lies above 0"
+    "CI of its mean final success minus raw's, paired by seed, lies above 0 (Student-t below "
+    "10 seeds, bootstrap from 10)"
 )
+WHERE = "rl/results.py, THRESHOLD, commit b645c3d, before the first RL results (docs/results/rl)"
+POSE = "pose clearly above random"
+LEARNED = "the motor-trained encoders also beat the untrained one, random"
 
 
 def paired_difference(a: Sequence[float], b: Sequence[float]) -> dict:
-    """``summary`` of the per-seed differences ``a[i] - b[i]``: agents of the same seed meet the
-    same training and evaluation starts, so the pairing removes the starts' share of noise."""
-    if len(a) != len(b):
-        raise ValueError(f"paired scores need as many seeds: {len(a)} and {len(b)}")
-    return summary([x - y for x, y in zip(a, b, strict=True)])
+    """``summary`` of the per-seed differences ``a[i] - b[i]`` (``stats.paired_differences``):
+    agents of the same seed meet the same training and evaluation starts, so the pairing
+    removes the starts' share of noise."""
+    return summary(paired_differences(list(a), list(b)))
+
+
+def _verdict(claim: str, against: str, diffs: dict, seeds: int, where: str) -> dict:
+    """The ``stats.Verdict`` (as strict JSON) that every paired difference in ``diffs``
+    (``{feature set: summary}``) lies above 0 by its interval, with ``diffs`` beside it; not
+    judged (None) without differences or below ``MIN_SEEDS`` seeds."""
+    holds = None
+    if diffs and seeds >= MIN_SEEDS:
+        holds = all(d["ci_low"] is not None and d["ci_low"] > 0 for d in diffs.values())
+    names = ", ".join(f"{f} - {against}" for f in diffs) or f"none run against {against}"
+    v = Verdict(
+        claim=claim,
+        threshold="the 95 % CI of each mean paired difference lies above 0",
+        test=f"95 % {interval_name(seeds) or 'no'} interval of the paired per-seed differences "
+        f"({names}) over {seeds} seed(s) lies above 0; no verdict below {MIN_SEEDS} seeds",
+        numbers=", ".join(f"{f} - {against} {fmt_ci(d, '+')}" for f, d in diffs.items()),
+        holds=holds,
+        provenance=BEFORE,
+        where=where,
+    )
+    return v.to_dict()
 
 
 def verdicts(results: dict, score: str = "success") -> dict:
     """The paper's expectation (conclusion) tested on the final ``score`` (a success rate), the
     same threshold against the untrained encoder (``motors_beat_random``: is the help learned?),
-    and the sanity check that the oracle ``pose`` beats ``random``; each ``None`` when its
-    feature sets were not run."""
+    and the sanity check that the oracle ``pose`` beats ``random``: each a ``stats.Verdict``
+    (as a dict) with its paired differences, ``holds`` None when its feature sets were not run
+    or fewer than ``MIN_SEEDS`` seeds were."""
 
     def diff(a: str, b: str) -> dict | None:
         if a not in results or b not in results:
             return None
         return paired_difference(results[a][score]["per_seed"], results[b][score]["per_seed"])
 
-    motors = {f: diff(f, "raw") for f in MOTOR_FEATURES if f in results}
+    seeds = min((len(r[score]["per_seed"]) for r in results.values()), default=0)
+    motors = {f: diff(f, "raw") for f in motor_features() if f in results}
     motors = {f: d for f, d in motors.items() if d is not None}
-    learned = {f: diff(f, "random") for f in MOTOR_FEATURES if f in results}
+    learned = {f: diff(f, "random") for f in motor_features() if f in results}
     learned = {f: d for f, d in learned.items() if d is not None}
     pose = diff("pose", "random")
+    later = f"{WHERE}; this comparison since 87ac377, after them"
     return {
         "motors_beat_random": {  # is it what the encoder learned, or any recurrent features?
+            **_verdict(LEARNED, "random", learned, seeds, later),
             "differences": learned,
-            "supported": all(d["ci_low"] > 0 for d in learned.values()) if learned else None,
         },
         "motors_help": {
-            "claim": CLAIM,
+            **_verdict(CLAIM, "raw", motors, seeds, WHERE),
             "threshold": THRESHOLD,
             "differences": motors,
-            "supported": all(d["ci_low"] > 0 for d in motors.values()) if motors else None,
         },
         "pose_beats_random": {
+            **_verdict(POSE, "random", {"pose": pose} if pose else {}, seeds, WHERE),
             "difference": pose,
-            "supported": None if pose is None else pose["ci_low"] > 0,
         },
     }

@@ -40,6 +40,6 @@ for w, by_seed in sorted(rows.items()):
     )
     for name, v in claims.items():
         print(
-            f"  {name}: {v['mean']:+.3f} (SE {v['se']:.3f}, margin {MARGINS[name.split()[0]]}): "
-            f"{'holds' if v['holds'] else 'does NOT hold'}"
+            f"  {name}: {v.numbers['mean']:+.3f} (SE {v.numbers['se']:.3f}, margin "
+            f"{MARGINS[name.split()[0]]}): {v.word('holds', 'does NOT hold')}"
         )
