@@ -77,7 +77,7 @@ def map_cmd(
     pairs: Annotated[int, typer.Option(help="Start/goal pairs planned in the simulator.")] = 300,
 ) -> None:
     """Learn a map from a representation's cells: the cell graph and a cloned HMM (EM, Viterbi,
-    each clone split by the slow context), scored on the test split (bits/step, localisation, rooms); see analysis/mapping.py."""
+    each clone split by the slow context), scored on the test split (bits/step, localisation, rooms); see analysis/map/mapping.py."""
     from sensorimotor.analysis.map.mapping import check_settings, map_files, summary_lines
 
     check_settings(clusters, clones, contexts)

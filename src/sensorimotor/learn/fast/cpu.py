@@ -35,7 +35,7 @@ def flush_subnormals() -> Iterator[None]:
 
     Adam's moments of a weight whose gradient is 0 (a dead ReLU unit) decay geometrically
     through the subnormal range, and on some x86 CPUs every operation on a subnormal takes a
-    slow path, so S and SM epochs slow down as training goes on (the README's speed section
+    slow path, so S and SM epochs slow down as training goes on (``docs/benchmarks.md``
     says by how much). Flushed, they do not; the weights stay the same bit for bit, as a number
     that small moves no weight in float32.
     """

@@ -2,7 +2,7 @@
 
 On a GPU these tiny models are bound by kernel launches, not arithmetic: an eager Rec-SM step
 of 64 streams x 20 steps launches a few hundred kernels, and launching them takes longer than
-running them (the README's speed section has the measurements). A CUDA graph records a
+running them (``docs/benchmarks.md`` has the measurements). A CUDA graph records a
 step's kernels once, reading its inputs from fixed buffers; each replay runs the same kernels
 on the buffers' new contents in one launch. Only the launching changes, so the numbers are the eager loop's (tests check
 it); ``engine.train_epoch_recurrent`` and ``stacked.train_epoch_stacked`` use this on CUDA.
