@@ -380,3 +380,15 @@ def test_the_reports_numbers_are_the_tables_and_the_transfers(smoke):
             assert f"#{c}: {fit['events'][e]['f1']:.2f} → {text}" in row, (row, e)
             told_apart += abs(there - fit["events"][e]["f1"]) >= 0.005
     assert told_apart > 0
+
+
+@pytest.mark.slow  # the whole pipeline, end to end
+def test_the_report_opens_on_its_summary_and_stays_small(smoke):
+    md = (smoke / "report.md").read_text()
+    sections = [line for line in md.splitlines() if line.startswith("## ")]
+    assert sections[0] == "## Summary"
+    summary = md.split("## Summary\n")[1].split("\n## ")[0]
+    assert "| the paper's claim | verdict |" in summary
+    assert "(paper 0.03735," in summary  # S-encoder on Square beside the paper's value
+    assert sections[-1] == "## How this report was made"  # settings and timings last
+    assert (smoke / "report.html").stat().st_size < 5e6

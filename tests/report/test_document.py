@@ -235,3 +235,38 @@ def test_the_memory_claims_need_their_clusters_and_r2_margins():
     assert not verdict(claim, **base, **{"rec-sm": dict(nothing_clusters=3, behind_r2=0.15)})
     assert verdict(sharper, **base, **{"rec-sm": dict(behind_r2=0.6)})
     assert not verdict(sharper, **base, **{"rec-sm": dict(behind_r2=0.45)})
+
+
+def test_the_html_links_its_sections_colours_verdicts_folds_grids_and_shrinks_images(tmp_path):
+    from matplotlib.figure import Figure
+    from PIL import Image
+
+    from sensorimotor.report.document import MAX_IMAGE_WIDTH, anchor, contents, embedded_png
+
+    big = tmp_path / "big.png"
+    fig = Figure(figsize=(30, 3), dpi=100)  # 3000 px wide
+    fig.add_subplot().plot([0, 1])
+    fig.savefig(big)
+    blocks = [
+        h(1, "Report"),
+        contents(),
+        h(2, "The paper's claims, tested"),
+        table(["claim", "verdict"], [["a", "supported"], ["b", "not supported"], ["c", "n/a"]]),
+        h(2, "Cluster maps"),
+        image(big, "a grid", folded=True),
+    ]
+    page = to_html(blocks, "t")
+    md = to_markdown(blocks, tmp_path)
+    assert anchor("The paper's claims, tested") == "the-papers-claims-tested"
+    assert '<h2 id="the-papers-claims-tested">' in page
+    assert '<a href="#the-papers-claims-tested">' in page  # the contents link to it
+    assert "- [Cluster maps](#cluster-maps)" in md
+    assert '<td class="yes">supported</td>' in page
+    assert '<td class="no">not supported</td>' in page
+    assert "<td>n/a</td>" in page
+    assert "<details><summary>a grid</summary>" in page
+    import io
+
+    with Image.open(io.BytesIO(embedded_png(big))) as im:
+        assert im.width == MAX_IMAGE_WIDTH
+    assert len(embedded_png(big)) < big.stat().st_size

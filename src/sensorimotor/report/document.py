@@ -1,14 +1,20 @@
 """The reproduction's report: one Markdown file and one self-contained HTML file.
 
 The report is a list of blocks (headings, paragraphs, tables, images) rendered twice, so the two
-files always say the same thing. Every number in it is read from the stages' outputs.
+files always say the same thing. Every number in it is read from the stages' outputs. It leads
+with its verdicts: a summary (the claims, Table I against the paper), the contents, then the
+numbers, the figures (the long grids folded), and the settings and timings last. The HTML embeds
+its images downscaled (``MAX_IMAGE_WIDTH``, a palette of ``IMAGE_COLOURS``), so that a
+reproduction's report stays a few megabytes.
 """
 
 from __future__ import annotations
 
 import base64
 import html
+import io
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,9 +32,14 @@ def label(name: str) -> str:
     return "Sensory (raw readings)" if name == RAW else KINDS[name].label
 
 
+MAX_IMAGE_WIDTH = 1100  # pixels of an image embedded in the HTML: the page's width
+IMAGE_COLOURS = 128  # the embedded PNG's palette: plots and arrows need no more
+VERDICT_CLASS = {"supported": "yes", "holds": "yes", "not supported": "no", "fails": "no"}
+
+
 @dataclass(frozen=True)
 class Block:
-    kind: str  # "h1" | "h2" | "h3" | "p" | "table" | "image" | "code"
+    kind: str  # "h1" | "h2" | "h3" | "p" | "table" | "image" | "code" | "toc"
     content: object
 
 
@@ -44,14 +55,31 @@ def table(header: list[str], rows: list[list[str]]) -> Block:
     return Block("table", (header, rows))
 
 
-def image(path: Path, caption: str) -> Block:
-    return Block("image", (path, caption))
+def image(path: Path, caption: str, folded: bool = False) -> Block:
+    """A figure; ``folded``: one of a long grid, closed in the HTML until clicked."""
+    return Block("image", (path, caption, folded))
+
+
+def contents() -> Block:
+    """The list of the report's sections (its level-2 headings), with links."""
+    return Block("toc", None)
+
+
+def anchor(text: str) -> str:
+    """A heading's anchor, as GitHub makes it: lower case, punctuation dropped, spaces to -."""
+    return re.sub(r"[^\w\- ]", "", text.lower()).replace(" ", "-")
+
+
+def _sections(blocks: list[Block]) -> list[str]:
+    return [str(b.content) for b in blocks if b.kind == "h2"]
 
 
 def to_markdown(blocks: list[Block], root: Path) -> str:
     out = []
     for b in blocks:
-        if b.kind.startswith("h"):
+        if b.kind == "toc":
+            out.append("\n".join(f"- [{t}](#{anchor(t)})" for t in _sections(blocks)))
+        elif b.kind.startswith("h"):
             out.append("#" * int(b.kind[1]) + " " + str(b.content))
         elif b.kind == "p":
             out.append(str(b.content))
@@ -64,7 +92,7 @@ def to_markdown(blocks: list[Block], root: Path) -> str:
             for row in rows:
                 out[-1] += "\n| " + " | ".join(row) + " |"
         elif b.kind == "image":
-            path, caption = b.content
+            path, caption, _ = b.content
             out.append(f"![{caption}]({path.relative_to(root).as_posix()})\n\n*{caption}*")
     return "\n\n".join(out) + "\n"
 
@@ -79,29 +107,57 @@ def _inline_md(text: str) -> str:
     return re.sub(r"`(.+?)`", r"<code>\1</code>", text)
 
 
+def embedded_png(path: Path) -> bytes:
+    """``path``'s image at most ``MAX_IMAGE_WIDTH`` wide, as a palette PNG: what the HTML
+    embeds (the files on disk keep their full resolution)."""
+    from PIL import Image
+
+    with Image.open(path) as im:
+        im = im.convert("RGB")
+        if im.width > MAX_IMAGE_WIDTH:
+            height = round(im.height * MAX_IMAGE_WIDTH / im.width)
+            im = im.resize((MAX_IMAGE_WIDTH, height), Image.Resampling.LANCZOS)
+        buf = io.BytesIO()
+        im.quantize(IMAGE_COLOURS).save(buf, format="PNG", optimize=True)
+    return buf.getvalue()
+
+
+def _cell(text: str, tag: str) -> str:
+    verdict = VERDICT_CLASS.get(text)
+    attr = f' class="{verdict}"' if verdict else ""
+    return f"<{tag}{attr}>{_inline_md(text)}</{tag}>"
+
+
 def to_html(blocks: list[Block], title: str) -> str:
     body = []
     for b in blocks:
-        if b.kind.startswith("h"):
-            body.append(f"<{b.kind}>{html.escape(str(b.content))}</{b.kind}>")
+        if b.kind == "toc":
+            items = "".join(
+                f'<li><a href="#{anchor(t)}">{html.escape(t)}</a></li>' for t in _sections(blocks)
+            )
+            body.append(f'<nav><ul class="toc">{items}</ul></nav>')
+        elif b.kind.startswith("h"):
+            text = str(b.content)
+            body.append(f'<{b.kind} id="{anchor(text)}">{html.escape(text)}</{b.kind}>')
         elif b.kind == "p":
             body.append(f"<p>{_inline_md(str(b.content))}</p>")
         elif b.kind == "code":
             body.append(f"<pre>{html.escape(str(b.content))}</pre>")
         elif b.kind == "table":
             header, rows = b.content
-            head = "".join(f"<th>{_inline_md(c)}</th>" for c in header)
-            trs = "".join(
-                "<tr>" + "".join(f"<td>{_inline_md(c)}</td>" for c in r) + "</tr>" for r in rows
-            )
+            head = "".join(_cell(c, "th") for c in header)
+            trs = "".join("<tr>" + "".join(_cell(c, "td") for c in r) + "</tr>" for r in rows)
             body.append(f"<table><thead><tr>{head}</tr></thead><tbody>{trs}</tbody></table>")
         elif b.kind == "image":
-            path, caption = b.content
-            data = base64.b64encode(Path(path).read_bytes()).decode()
-            body.append(
+            path, caption, folded = b.content
+            data = base64.b64encode(embedded_png(Path(path))).decode()
+            figure = (
                 f'<figure><img src="data:image/png;base64,{data}" alt="{html.escape(caption)}">'
                 f"<figcaption>{html.escape(caption)}</figcaption></figure>"
             )
+            if folded:
+                figure = f"<details><summary>{html.escape(caption)}</summary>{figure}</details>"
+            body.append(figure)
     style = (
         "body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;"
         "color:#222}table{border-collapse:collapse;margin:1em 0;font-size:0.9em}"
@@ -109,6 +165,9 @@ def to_html(blocks: list[Block], title: str) -> str:
         "td:first-child,th:first-child{text-align:left}img{max-width:100%}"
         "figure{margin:1em 0}figcaption{font-style:italic;color:#555}"
         "pre{background:#f6f6f6;padding:0.8em;overflow-x:auto}"
+        "td.yes,td.no{white-space:nowrap;text-align:center}"
+        "td.yes{background:#dff3df;color:#135e13}td.no{background:#f8dede;color:#8a1414}"
+        "details{margin:0.4em 0}summary{cursor:pointer;color:#235}ul.toc{columns:2}"
     )
     return (
         f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
@@ -175,21 +234,47 @@ def _figures(rep) -> dict[str, Path]:
     return figs
 
 
-def _settings(rep, argv: list[str], hardware: dict) -> list[Block]:
-    """The title, the command and what it ran with."""
-    b = [h(1, "sensorimotor: reproduction report")]
-    b.append(
+def _title(argv: list[str]) -> list[Block]:
+    """The title and the command that made the report."""
+    return [
+        h(1, "sensorimotor: reproduction report"),
         p(
-            "Kulak & Garcia Ortiz, *Representation Learning in Partially Observable Environments using "
-            "Sensorimotor Prediction*: databases, the four encoders, Table I and the analysis of the "
-            "representations, regenerated by one command."
-        )
-    )
-    b.append(
-        Block("code", " ".join(["sensorimotor", *argv[1:]]) if argv else "sensorimotor reproduce")
-    )
+            "Kulak & Garcia Ortiz, *Representation Learning in Partially Observable Environments "
+            "using Sensorimotor Prediction*: databases, the four encoders, Table I and the analysis "
+            "of the representations, regenerated by one command."
+        ),
+        Block("code", " ".join(["sensorimotor", *argv[1:]]) if argv else "sensorimotor reproduce"),
+    ]
+
+
+def _summary(rep, verdicts: list) -> list[Block]:
+    """What the reproduction found, first: the scale's caveat, each claim's verdict, and Table I
+    (trained on Square) beside the paper's."""
+    b = [h(2, "Summary")]
     if rep.scale.caveat:
         b.append(p(f"**Note.** {rep.scale.caveat}"))
+    b.append(table(["the paper's claim", "verdict"], [[v.claim, v.word()] for v in verdicts]))
+    rows_t = rep.table["tables"].get("square")
+    if rows_t:
+        worlds = rep.table["worlds"]
+        body = []
+        for row in rows_t:
+            cells = [row["name"]]
+            for w in worlds:
+                mean = row["cells"][w]["mean"]
+                paper = PAPER_TABLE_I.get(row["model"], {}).get(w)
+                versus = "" if paper is None else f" (paper {paper:g}, {mean / paper - 1:+.0%})"
+                cells.append(f"{mean:.5f}{versus}")
+            body.append(cells)
+        b.append(p("Table I, trained on Square: test error, mean over seeds, against the paper's."))
+        b.append(table(["model", *worlds], body))
+        b.append(p(paper_agreement(rows_t, worlds)))
+    return b
+
+
+def _settings(rep, hardware: dict) -> list[Block]:
+    """What the reproduction ran with."""
+    b = [h(2, "How this report was made")]
     b.append(
         table(
             ["", ""],
@@ -401,13 +486,22 @@ def _inside(rep, figs: dict[str, Path], numbers: dict, worlds: list[str]) -> lis
 def _maps(rep) -> list[Block]:
     """The cluster maps of seed 0, and the transfer of clusters between worlds."""
     b: list[Block] = []
-    b.append(h(3, "Cluster maps (seed 0): 500 steps of each cluster, arrows at true pose"))
+    b.append(h(2, "Cluster maps (paper Figs. 5-9)"))
+    b.append(
+        p(
+            "Seed 0; 500 steps of each of the 20 k-means clusters drawn as arrows at their true "
+            "pose. A panel's title: `#c share% event precision% (lift x)`: cluster c holds share % "
+            "of the test steps; of its steps, precision % see the event it is richest in (corner, "
+            "wall end, nothing in view), lift times that event's rate over all steps."
+        )
+    )
     shown = [(kind, "square") for kind in with_raw()] + [(REC_SM, "rooms1"), (REC_SM, "rooms2")]
     for kind, world in shown:
         name = f"raw__{world}" if kind == RAW else f"{world}__{kind}__s0"
         path = rep.out / "analysis" / name / "clusters.png"
         if path.exists():
-            b.append(image(path, f"{label(kind)} trained on {world}: the 20 clusters"))
+            caption = f"{label(kind)} trained on {world}: the 20 clusters"
+            b.append(image(path, caption, folded=True))
 
     b.append(h(3, "Transfer: Rec-SM and its clusters fitted on one world, applied to another"))
     b.append(
@@ -432,12 +526,8 @@ def _maps(rep) -> list[Block]:
     b.append(table(["fitted → applied", "corner F1", "wall-end F1", "nothing F1"], body))
     for name in rep.transfers:
         path = rep.out / "transfer" / name / "clusters.png"
-        b.append(
-            image(
-                path,
-                f"{name.replace('__', ' ')}: clusters fitted on the training world drawn on the other",
-            )
-        )
+        caption = f"{name.replace('__', ' ')}: clusters fitted on the training world drawn on the other"
+        b.append(image(path, caption, folded=True))
     return b
 
 
@@ -473,15 +563,18 @@ def write_report(
     numbers = claim_numbers(rep.analyses, rep.runs, worlds)
     claims, verdicts = _claims(rep.table, rep.transfers, numbers)
     b = [
-        *_settings(rep, argv, hardware),
-        *_timings(rep, figure_seconds),
-        *_trainings(rep),
-        *_simulator(figs),
+        *_title(argv),
+        *_summary(rep, paper_claims(rep.table, rep.transfers, numbers)),
+        contents(),
         *_table_one(rep),
         *_inside(rep, figs, numbers, worlds),
-        *_maps(rep),
         *claims,
         *extra,
+        *_simulator(figs),
+        *_maps(rep),
+        *_settings(rep, hardware),
+        *_timings(rep, figure_seconds),
+        *_trainings(rep),
     ]
     md = to_markdown(b, out)
     page = to_html(b, "sensorimotor reproduction report")
