@@ -3,6 +3,7 @@ database, and every bad input is one line on stderr, exit code 2, and no file le
 
 from __future__ import annotations
 
+import importlib
 import os
 import stat
 
@@ -190,3 +191,18 @@ def test_output_folder_not_writable(cli, tmp_path):
         assert_nothing_written(folder)
     finally:
         folder.chmod(0o755)
+
+
+def test_progress_into_a_log_prints_the_first_line_then_at_most_every_log_every_s_and_the_last(
+    monkeypatch, capsys
+):
+    cli_app = importlib.import_module("sensorimotor.cli.app")  # the module, not the Typer app
+
+    clock = iter([0.0, 1.0, 2.0, 11.0, 12.0])  # seconds at each update
+    monkeypatch.setattr(cli_app.time, "monotonic", lambda: next(clock, 99.0))
+    monkeypatch.setattr(cli_app, "err_console", cli_app.Console(stderr=True, force_terminal=False))
+    with cli_app.progress("work", total=5) as update:
+        for i in range(1, 6):
+            update(i, f"item {i}")
+    lines = capsys.readouterr().err.splitlines()
+    assert lines == ["work 1 of 5: item 1", "work 4 of 5: item 4", "work 5 of 5: item 5"]

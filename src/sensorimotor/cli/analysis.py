@@ -8,10 +8,7 @@ from typing import Annotated
 
 import typer
 
-from sensorimotor.cli.app import (
-    app,
-    err_console,
-)
+from sensorimotor.cli.app import app, err_console, progress
 from sensorimotor.sim import MAX_SEED
 
 
@@ -81,10 +78,10 @@ def map_cmd(
     from sensorimotor.analysis.map.mapping import check_settings, map_files, summary_lines
 
     check_settings(clusters, clones, contexts)
-    with err_console.status(f"mapping {run} on {data}") as status:
+    with progress(f"mapping {run} on {data}") as update:
 
         def note(stage: str, i: int, ll: float) -> None:
-            status.update(f"mapping: {stage} {i}, {ll:.4f} nats/step")
+            update(message=f"{stage} iteration {i}, {ll:.4f} nats/step")
 
         result = map_files(
             *(run, data, out, clusters, clones, fit_data, seed),

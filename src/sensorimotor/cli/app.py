@@ -3,6 +3,9 @@ the modules beside this one, one per layer of the package."""
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated
 
@@ -38,6 +41,44 @@ def progress_bar() -> Progress:
         console=err_console,
         transient=False,
     )
+
+
+LOG_EVERY = 10.0  # seconds: the most often a progress line goes into a log (a file, CI, nohup)
+
+
+@contextmanager
+def progress(description: str, total: int | None = None) -> Iterator[Callable[..., None]]:
+    """The command line's one progress display for long work. In a terminal: a bar with its
+    total and time left (without a total, a spinner showing the latest message). Into a log
+    (stderr not a terminal): the first update, then a line at most every ``LOG_EVERY`` seconds,
+    and the last. Yields ``update(done=None, message="")``."""
+    if err_console.is_terminal:
+        if total is None:
+            with err_console.status(description) as status:
+                yield lambda done=None, message="": status.update(f"{description}: {message}")
+            return
+        with progress_bar() as bar:
+            task = bar.add_task(description, total=total)
+
+            def update(done: int | None = None, message: str = "") -> None:
+                text = f"{description}: {message}" if message else description
+                bar.update(task, description=text, **({} if done is None else {"completed": done}))
+
+            yield update
+        return
+    state = {"last": -LOG_EVERY, "line": None}
+
+    def update(done: int | None = None, message: str = "") -> None:
+        of = "" if done is None else f" {done:,}" + ("" if total is None else f" of {total:,}")
+        state["line"] = f"{description}{of}" + (f": {message}" if message else "")
+        now = time.monotonic()
+        if now - state["last"] >= LOG_EVERY:
+            err_console.print(state["line"], highlight=False, markup=False)
+            state["last"], state["line"] = now, None
+
+    yield update
+    if state["line"] is not None:
+        err_console.print(state["line"], highlight=False, markup=False)
 
 
 plot_app = typer.Typer(

@@ -16,7 +16,7 @@ from sensorimotor.cli.app import (
     app,
     err_console,
     plot_app,
-    progress_bar,
+    progress,
 )
 from sensorimotor.errors import InputError
 from sensorimotor.sim import MAX_SEED
@@ -74,15 +74,14 @@ def generate(
     out = out or Path(f"{w.name}_s{seed}.npz")
     check_writable(out)
     check_memory(steps, 12 * (rays + 5))
-    with progress_bar() as bar:
-        task = bar.add_task(f"generate {w.name}", total=steps)
+    with progress(f"generate {w.name}: steps", steps) as update:
         db = generate_db(
             w,
             steps,
             seed,
             layout,
             noise_std=noise,
-            progress=lambda n: bar.update(task, completed=n),
+            progress=lambda n: update(n),
             noise_kind=noise_kind,
             dropout=dropout,
             motor_noise_std=motor_noise,

@@ -108,14 +108,18 @@ def _engine_note(model: str, device: str, single: bool) -> str:
     return f", with autograd: models.py's {model} is not what the stacked passes compute"
 
 
-def epoch_line(r, stopper, seed: int | None = None, max_minutes: float | None = None) -> str:
-    """One epoch of one run, as `train` and `reproduce` print it."""
+def epoch_line(
+    r, stopper, seed: int | None = None, max_minutes: float | None = None, max_epochs=None
+) -> str:
+    """One epoch of one run, as `train` prints it."""
+    from sensorimotor.learn.runs import epoch_label
+
     mark = "*" if r.improved else " "
     left = ""
     if max_minutes is not None:
         left = f"  {max(0.0, 60 * max_minutes - r.elapsed) / 60:.1f} min left under the cap"
     return (
-        f"{'' if seed is None else f's{seed} '}epoch {r.epoch:3d}{mark} "
+        f"{'' if seed is None else f's{seed} '}{epoch_label(r.epoch, max_epochs)}{mark} "
         f"train {r.train_error:.5f}  val {r.val_error:.5f}  "
         f"best {stopper.lowest:.5f} (epoch {stopper.best_epoch})  "
         f"{r.samples_per_s / 1e3:,.0f} k samples/s  {r.seconds:.1f} s  "
@@ -136,7 +140,8 @@ def _train(model, data: Path, out: Path, config, seeds: list[int], note, resume,
             started.append(True)
             how = _engine_note(model, config.device, single)
             err_console.print(f"training {KINDS[model].label} on {data} ({note}{how}) -> {out}")
-        err_console.print(epoch_line(r, stopper, None if single else seed, config.max_minutes))
+        line = epoch_line(r, stopper, None if single else seed, config.max_minutes, config.max_epochs)
+        err_console.print(line)
 
     if single:
         one = train(data, out, config, resume, lambda r, st: on_epoch(seeds[0], r, st), sizes)

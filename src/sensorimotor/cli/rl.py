@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from sensorimotor.cli.app import app, err_console, progress_bar
+from sensorimotor.cli.app import app, err_console, progress
 from sensorimotor.cli.reproduce import AddressOpt, BackendOpt
 from sensorimotor.jobs.backend import check_backend, job_runner, run_all
 from sensorimotor.rl import RUNS_ENV
@@ -69,9 +69,8 @@ def rl(
         err_console.print("\n".join([*summary_lines(result), f"wrote {out}/rl.json, rl.png"]))
         return
     order = {(f, s): i for i, (f, s) in enumerate((f, s) for f in names for s in range(seeds))}
-    with progress_bar() as bar:
-        job = bar.add_task(f"rl {task}", total=len(names) * seeds * steps)
+    with progress(f"rl {task}: environment steps", len(names) * seeds * steps) as update:
         result = run_grid(
-            config, out, lambda f, s, n: bar.update(job, completed=order[f, s] * steps + n)
+            config, out, lambda f, s, n: update(order[f, s] * steps + n, f"{f} seed {s}")
         )
     err_console.print("\n".join([*summary_lines(result), f"wrote {out}/rl.json, rl.png"]))

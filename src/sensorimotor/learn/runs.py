@@ -156,6 +156,12 @@ class TrainResult:
         return f"{self.stopped} after {count(self.epochs, 'epoch')}"
 
 
+def epoch_label(epoch: int, max_epochs: int | None) -> str:
+    """An epoch (0-based, as run folders count them) in a progress line, with how many of its
+    cap it is: "epoch  19 (20 of 80)"; the cap left out where early stopping alone ends it."""
+    return f"epoch {epoch:3d}" + (f" ({epoch + 1} of {max_epochs})" if max_epochs else "")
+
+
 def count(n: int, noun: str) -> str:
     """``n`` and the noun, plural unless one: "1 epoch", "3 epochs"."""
     return f"{n} {noun}" if n == 1 else f"{n} {noun}s"

@@ -115,10 +115,20 @@ class Reproduction:
         return self.out / "runs" / self.run_name(world, model, seed)
 
 
+PAPER_STAGES = ("data", "train", "evaluate", "analyze")
+
+
+def stages_of(rep: Reproduction) -> tuple[str, ...]:
+    """Every stage ``reproduce`` runs, in order: the paper's, the experiments, the report."""
+    return (*PAPER_STAGES, *rep.experiments, "report")
+
+
 @contextmanager
 def stage(rep: Reproduction, name: str, log: Callable[[str], None]):
-    """Time one stage into ``rep.timings``."""
-    log(f"[bold]stage {name}[/bold]")
+    """Time one stage into ``rep.timings``; its line says which of all the stages it is."""
+    names = stages_of(rep)
+    where = f" ({names.index(name) + 1} of {len(names)})" if name in names else ""
+    log(f"[bold]stage {name}{where}[/bold]")
     t0 = time.perf_counter()
     yield
     rep.timings[name] = {**rep.timings.get(name, {}), "seconds": time.perf_counter() - t0}
@@ -246,6 +256,18 @@ def _train_config(sc: Scale, model: str, device: str, seed: int | None = None) -
     return train_config(model, device, sc.epochs(model), sc.patience, seed)
 
 
+class _Tally:
+    """Counts a stage's finished jobs into the log: "done 3 of 12: square__sm__s0"; ``total``
+    grows when a finished job queues others."""
+
+    def __init__(self, log: Callable[[str], None], total: int) -> None:
+        self.log, self.total, self.done = log, total, 0
+
+    def __call__(self, name: str, _result) -> None:
+        self.done += 1
+        self.log(f"  done {self.done} of {self.total}: {name}")
+
+
 def run_paper(rep: Reproduction, run_jobs: Callable, log: Callable[[str], None]) -> None:
     """Run (or resume) the paper's stages into ``rep.out``; what they find goes into ``rep``.
     ``run_jobs``: ``jobs.workers.run_jobs``'s signature, on the chosen backend."""
@@ -265,7 +287,7 @@ def run_paper(rep: Reproduction, run_jobs: Callable, log: Callable[[str], None])
                 continue
             jobs.append(Job(f"data {world}", data_job, (world, sc.steps, 0, str(path), key)))
         rep.timings["data"] = {"jobs": len(jobs), "cached": len(WORLDS) - len(jobs)}
-        _, failures = run_jobs(jobs, workers, progress)
+        _, failures = run_jobs(jobs, workers, progress, _Tally(log, len(jobs)))
         raise_first(failures, "run ", log)
     data_hash = {w: file_hash(p) for w, p in rep.data.items()}
     path_hash = {str(rep.data[w]): h for w, h in data_hash.items()}
@@ -299,6 +321,7 @@ def run_paper(rep: Reproduction, run_jobs: Callable, log: Callable[[str], None])
                     "with autograd (slower)"
                 )
         overlapped = {"evaluate": 0, "analyze": 0}
+        tally = _Tally(log, 0)
 
         def then(name: str, _result) -> list[Job]:
             """Evaluate and analyse each run a training job finished, while others train."""
@@ -310,12 +333,14 @@ def run_paper(rep: Reproduction, run_jobs: Callable, log: Callable[[str], None])
             more = [job for job in more if job is not None]
             overlapped["evaluate"] += sum(job.fn is eval_job for job in more)
             overlapped["analyze"] += sum(job.fn is analysis_job for job in more)
+            tally.total += len(more)
             return more
 
         raw = [_analysis_job_of(tg, path_hash) for w in rep.worlds for tg in _raw_targets(rep, w)]
         jobs += [job for job in raw if job is not None]  # cheap: they fill the end
         overlapped["analyze"] += len(jobs) - n_jobs
-        _, failures = run_jobs(jobs, workers, progress, then=then)
+        tally.total = len(jobs)
+        _, failures = run_jobs(jobs, workers, progress, tally, then=then)
         raise_first(failures, "run ", log)
 
     # evaluate -----------------------------------------------------------------------------
@@ -329,7 +354,7 @@ def run_paper(rep: Reproduction, run_jobs: Callable, log: Callable[[str], None])
             else:
                 jobs.append(job)
         _count(rep, "evaluate", len(jobs), len(rep.runs) - len(jobs), overlapped)
-        new, failures = run_jobs(jobs, workers, progress)
+        new, failures = run_jobs(jobs, workers, progress, _Tally(log, len(jobs)))
         raise_first(failures, "run ", log)
         results.update(new)
         from sensorimotor.analysis.tables import table_from_results
@@ -348,7 +373,7 @@ def run_paper(rep: Reproduction, run_jobs: Callable, log: Callable[[str], None])
         jobs = [_analysis_job_of(tg, path_hash) for tg in targets]
         jobs = [job for job in jobs if job is not None]
         _count(rep, "analyze", len(jobs), len(targets) - len(jobs), overlapped)
-        _, failures = run_jobs(jobs, workers, progress)
+        _, failures = run_jobs(jobs, workers, progress, _Tally(log, len(jobs)))
         raise_first(failures, "run ", log)
         for name, _run, _data, fit, dest in targets:
             metrics = json.loads((Path(dest) / "metrics.json").read_text())

@@ -109,6 +109,7 @@ def train_and_tell(data: str | list[str], runs: list[tuple[int, str]], config: d
     per run), resumed where a folder holds a checkpoint, each epoch sent as a progress line;
     the best validation error of each run by its folder's name."""
     from sensorimotor.learn.config import TrainConfig
+    from sensorimotor.learn.runs import epoch_label
     from sensorimotor.learn.train import train_runs
 
     names = [Path(run_dir).name for _, run_dir in runs]
@@ -117,7 +118,8 @@ def train_and_tell(data: str | list[str], runs: list[tuple[int, str]], config: d
     def on_epoch(i, r, stopper) -> None:
         send_progress(
             names[i],
-            f"epoch {r.epoch:3d} val {r.val_error:.5f} (best {stopper.lowest:.5f}) "
+            f"{epoch_label(r.epoch, config.get('max_epochs'))} val {r.val_error:.5f} "
+            f"(best {stopper.lowest:.5f}) "
             f"{r.samples_per_s / 1e3:.0f} k samples/s{stacked}",
         )
 
