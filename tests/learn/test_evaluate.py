@@ -258,3 +258,14 @@ def test_a_recurrent_pass_runs_on_one_thread_and_gives_the_threads_back(monkeypa
         torch.set_num_threads(before)
     assert seen == [1]
     assert z.shape == (50, 10)
+
+
+def test_a_model_that_does_not_beat_copying_the_last_reading_is_flagged():
+    from sensorimotor.learn.evaluate import baseline_warnings
+
+    base = {"square": {"mean": 0.25, "copy_last": 0.07}, "rooms1": {"mean": 0.4, "copy_last": 0.1}}
+    lines = baseline_warnings("run", {"square": 0.77, "rooms1": 0.02}, base)
+    assert len(lines) == 1
+    assert lines[0].startswith("run on square: test error 0.77000 is not below copying")
+    assert "11.0 times it" in lines[0]
+    assert baseline_warnings("run", {"square": 0.069}, base) == []

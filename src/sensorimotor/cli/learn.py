@@ -111,10 +111,13 @@ def _engine_note(model: str, device: str, single: bool) -> str:
 def epoch_line(
     r, stopper, seed: int | None = None, max_minutes: float | None = None, max_epochs=None
 ) -> str:
-    """One epoch of one run, as `train` prints it."""
+    """One epoch of one run, as `train` prints it. The mark says what early stopping counted:
+    ``*`` an improvement by the paper's rule (below ``min_ratio`` x the last counted error:
+    patience starts again), ``+`` a new lowest error that is not one (its weights are kept,
+    patience still runs down); the line ends with the error the next improvement needs."""
     from sensorimotor.learn.runs import epoch_label
 
-    mark = "*" if r.improved else " "
+    mark = "*" if r.improved else ("+" if r.best else " ")
     left = ""
     if max_minutes is not None:
         left = f"  {max(0.0, 60 * max_minutes - r.elapsed) / 60:.1f} min left under the cap"
@@ -123,7 +126,8 @@ def epoch_line(
         f"train {r.train_error:.5f}  val {r.val_error:.5f}  "
         f"best {stopper.lowest:.5f} (epoch {stopper.best_epoch})  "
         f"{r.samples_per_s / 1e3:,.0f} k samples/s  {r.seconds:.1f} s  "
-        f"patience {stopper.patience - stopper.waited}{left}"
+        f"patience {stopper.patience - stopper.waited} for val < "
+        f"{stopper.min_ratio * stopper.reference:.5f}{left}"
     )
 
 
@@ -140,6 +144,12 @@ def _train(model, data: Path, out: Path, config, seeds: list[int], note, resume,
             started.append(True)
             how = _engine_note(model, config.device, single)
             err_console.print(f"training {KINDS[model].label} on {data} ({note}{how}) -> {out}")
+            err_console.print(
+                f"early stopping: * an improvement (val below {config.min_ratio:g} x the last "
+                f"counted one), + a new lowest that is not; stops after {config.patience} epochs "
+                "without *",
+                highlight=False,
+            )
         line = epoch_line(r, stopper, None if single else seed, config.max_minutes, config.max_epochs)
         err_console.print(line)
 
@@ -170,7 +180,7 @@ def evaluate(
     from rich.table import Table
 
     from sensorimotor.files import check_writable, write_json_atomic
-    from sensorimotor.learn.evaluate import evaluate_run, load_run
+    from sensorimotor.learn.evaluate import baseline_warnings, evaluate_run, load_run
     from sensorimotor.learn.models import KINDS
     from sensorimotor.sim.database import load_database
 
@@ -188,6 +198,8 @@ def evaluate(
         b = res["baselines"][world]
         table.add_row(world, f"{err:.5f}", f"{b['mean']:.5f}", f"{b['copy_last']:.5f}")
     Console().print(table)
+    for line in baseline_warnings(run.path.name, res["errors"], res["baselines"]):
+        err_console.print(f"[yellow]warning: {line}", highlight=False)
     if json_out is not None:
         write_json_atomic(json_out, res)
 
@@ -206,7 +218,7 @@ def table(
 
     from sensorimotor.analysis.tables import PAPER_TABLE_I, build_table, fmt_cell
     from sensorimotor.files import check_writable, write_json_atomic
-    from sensorimotor.learn.evaluate import load_run
+    from sensorimotor.learn.evaluate import baseline_warnings, load_run
     from sensorimotor.sim.database import load_database
 
     if json_out is not None:
@@ -230,7 +242,8 @@ def table(
             for w in worlds:
                 cells.append(fmt_cell(row["cells"].get(w)))
                 if paper[w]:
-                    cells.append(f"{PAPER_TABLE_I[row['model']][w]:g}")
+                    value = PAPER_TABLE_I.get(row["model"], {}).get(w)
+                    cells.append("" if value is None else f"{value:g}")
             t.add_row(*cells)
         for name in ("mean", "copy_last"):
             cells = [f"baseline: {name.replace('_', '-')}"]
@@ -245,5 +258,9 @@ def table(
             )
         t.add_row(*cells)
         Console(width=max(100, Console().width)).print(t)
+        for row in rows:
+            errors = {w: c["mean"] for w, c in row["cells"].items()}
+            for line in baseline_warnings(row["name"], errors, result["baselines"]):
+                err_console.print(f"[yellow]warning: {line}", highlight=False)
     if json_out is not None:
         write_json_atomic(json_out, result)

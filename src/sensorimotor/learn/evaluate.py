@@ -80,6 +80,23 @@ def baselines(db: Database, split: str = "test") -> dict[str, float]:
     return {"mean": prediction_error(mean, s), "copy_last": prediction_error(s, s)}
 
 
+def baseline_warnings(name: str, errors: dict[str, float], base: dict[str, dict]) -> list[str]:
+    """A line for each test world where ``name``'s error is not below copying the last reading:
+    a model that predicts worse than "nothing changes" has not learned the sensorimotor
+    contingencies, and no number read from it should be trusted as such."""
+    lines = []
+    for world, err in errors.items():
+        copy = base.get(world, {}).get("copy_last")
+        if copy is not None and err >= copy:
+            lines.append(
+                f"{name} on {world}: test error {err:.5f} is not below copying the last reading "
+                f"({copy:.5f}, {err / copy:.1f} times it): the model has not learned to predict; "
+                "likely causes: too few epochs, or a recording whose rate or sensor layout "
+                "differs from the training database's"
+            )
+    return lines
+
+
 @dataclass(frozen=True)
 class Run:
     """A trained run folder: its best model and what it says about itself."""

@@ -24,6 +24,7 @@ from sensorimotor.analysis.analyze import RAW, with_raw
 from sensorimotor.analysis.claims import claim_numbers, cluster_f1, fmt_ms, paper_claims
 from sensorimotor.analysis.tables import PAPER_TABLE_I, fmt_cell
 from sensorimotor.files import read_json, write_json_atomic, write_text_atomic
+from sensorimotor.learn.evaluate import baseline_warnings
 from sensorimotor.learn.models import KINDS, REC_SM, paper_panels
 
 
@@ -415,6 +416,10 @@ def _table_one(rep) -> list[Block]:
         b += [h(3, f"Trained on {trained_on}"), table(header, body)]
         if trained_on == "square":
             b.append(p(paper_agreement(rows_t, t["worlds"])))
+        for row in rows_t:
+            errors = {w: c["mean"] for w, c in row["cells"].items()}
+            for line in baseline_warnings(row["name"], errors, t["baselines"]):
+                b.append(p(f"**Warning.** {line}."))
     return b
 
 
