@@ -389,3 +389,79 @@ def movement_bytes(dx: float, dy: float, dphi: float, stamp: int) -> bytes:
     body = struct.pack("<i", 0) + pose + struct.pack("<I6fI6f", 0, *[0.01] * 6, 300, *[0.1] * 6)
     body += struct.pack("<BffBiiQ", 0, 0.0, 0.0, 0, 0, 0, stamp)
     return head("CActionRobotMovement2D", 6) + body + bytes([END])
+
+
+# --- occupancy grids -------------------------------------------------------------------------
+
+MAX_GRID_TAIL = 1 << 20  # bytes of options after the cells (about 500 in MRPT's maps)
+LOGODDS_K = 16.0  # MRPT's cells are log-odds times 16: P(free) = 1 / (1 + exp(-cell / 16))
+
+
+@dataclass
+class Grid:
+    """A ``COccupancyGridMap2D``: ``free`` (size_y, size_x) float32 probability that each cell
+    is free (MRPT's convention: 1 free, 0 occupied, 0.5 unknown), row 0 at ``y_min``."""
+
+    free: np.ndarray = field(repr=False)
+    x_min: float
+    y_min: float
+    resolution: float
+    version: int
+    bits: int
+
+
+def read_gridmap(path: str | Path) -> Grid:
+    """An MRPT occupancy grid (``.gridmap`` or ``.gridmap.gz``: one ``COccupancyGridMap2D``,
+    versions 1..6): the header (cells per side, extent, resolution) and the cells, 8- or 16-bit
+    log-odds (versions 3 on) or probabilities (before 3); the options after the cells are not
+    read (they hold no geometry) but bounded, and the object must end the file."""
+    path = Path(path)
+    s = Stream(read_bytes(path, "gridmap"), path)
+    if not s.data:
+        raise InputError(f"{path}: empty gridmap")
+    name, version, at = s.header()
+    if name != "COccupancyGridMap2D":
+        raise s.fail(f"expected a COccupancyGridMap2D, found {name}", at)
+    s.versions(name, version, range(1, 7), at)
+    bits = s.unpack("B") if version >= 2 else 8
+    if bits not in (8, 16):
+        raise s.fail(f"cells of {bits} bits (expected 8 or 16)")
+    size_x, size_y = s.unpack("II")
+    if not (size_x > 0 and size_y > 0 and size_x * size_y <= MAX_CELLS):
+        raise s.fail(f"a grid of {size_x:,} x {size_y:,} cells (at most {MAX_CELLS:,} cells)")
+    x_min, x_max = s.real("f", -1e6, 1e6), s.real("f", -1e6, 1e6)
+    y_min, y_max = s.real("f", -1e6, 1e6), s.real("f", -1e6, 1e6)
+    resolution = s.real("f", 1e-4, 1e3)
+    for lo, hi, n, axis in ((x_min, x_max, size_x, "x"), (y_min, y_max, size_y, "y")):
+        if not abs((hi - lo) / resolution - n) <= 1.0 + 1e-3 * n:
+            raise s.fail(
+                f"{axis} extent {lo:g}..{hi:g} does not hold {n:,} cells of {resolution:g}"
+            )
+    dtype = np.dtype("<i1" if bits == 8 else "<i2")
+    cells = np.frombuffer(s.take(size_x * size_y * dtype.itemsize), dtype=dtype)
+    tail = len(s.data) - s.pos
+    if not 1 <= tail <= MAX_GRID_TAIL or s.data[-1] != END:
+        raise InputError(
+            f"{path}: {tail:,} bytes after the cells, not the options of a COccupancyGridMap2D "
+            "ending the file (cut, damaged or not one grid)"
+        )
+    if version >= 3:  # log-odds
+        scale = LOGODDS_K * (1 if bits == 8 else 256)
+        table = 1.0 / (1.0 + np.exp(-np.arange(-(1 << bits - 1), 1 << bits - 1) / scale))
+        free = table.astype(np.float32)[cells.astype(np.int32) + (1 << bits - 1)]
+    else:  # probabilities as unsigned cells
+        free = (cells.view(f"<u{dtype.itemsize}") / float((1 << bits) - 1)).astype(np.float32)
+    return Grid(free.reshape(size_y, size_x), x_min, y_min, resolution, version, bits)
+
+
+def gridmap_bytes(free: np.ndarray, resolution: float, x_min: float = 0.0, y_min: float = 0.0):
+    """A ``COccupancyGridMap2D`` version 3, 8-bit log-odds, from P(free) (rows, cols), row 0 at
+    ``y_min``, with a short options tail (for tests: the reader does not read it)."""
+    free = np.clip(np.asarray(free, dtype=np.float64), 1e-6, 1 - 1e-6)
+    cells = np.clip(np.rint(LOGODDS_K * np.log(free / (1 - free))), -127, 127).astype("<i1")
+    rows, cols = cells.shape
+    body = struct.pack("<BII", 8, cols, rows)
+    body += struct.pack(
+        "<5f", x_min, x_min + cols * resolution, y_min, y_min + rows * resolution, resolution
+    )
+    return head("COccupancyGridMap2D", 3) + body + cells.tobytes() + bytes(16) + bytes([END])
