@@ -1,4 +1,4 @@
-"""Commands of the simulator layer: databases (generate, import-bag) and the paper's
+"""Commands of the simulator layer: databases (generate, import-bag, import-rawlog) and the paper's
 figures of the simulator (plot)."""
 
 from __future__ import annotations
@@ -120,6 +120,30 @@ def import_bag(
     db = rosbag.import_bag(bag, rosbag.BagTopics(scan, odom, cmd, frame), layout, rate, w)
     save_database(db, out)
     err_console.print(f"wrote {out}: {rosbag.summary(db)}")
+
+
+@app.command("import-rawlog")
+def import_rawlog(
+    log: Annotated[Path, typer.Argument(help="MRPT rawlog (.rawlog, gzip or plain).")],
+    out: Annotated[Path, typer.Option(help="Database (.npz) to write.")],
+    sensor: Annotated[
+        str | None, typer.Option(help="Sensor label of the scans (default: the first scan's).")
+    ] = None,
+    rays: Annotated[int, typer.Option(help="Lasers (the encoders read 5).")] = 5,
+    fov: Annotated[float, typer.Option(help="Angle from first to last ray (rad).")] = 1.2,
+    range_: Annotated[float, typer.Option("--range", help="Reading of no return (units).")] = 10.0,
+    scale: Annotated[float, typer.Option(help="Units a metre (1: a unit is a metre).")] = 1.0,
+) -> None:
+    """Make a database of a real robot's MRPT rawlog: laser scans, odometry (see sim/rawlog.py)."""
+    from sensorimotor.files import check_writable
+    from sensorimotor.sim import rawlog, rosbag
+    from sensorimotor.sim.database import save_database
+
+    layout = rosbag.ray_layout(rays, fov, range_)
+    check_writable(out)
+    db = rawlog.import_rawlog(log, layout, scale, sensor)
+    save_database(db, out)
+    err_console.print(f"wrote {out}: {rawlog.summary(db)}")
 
 
 def _save_plot(fig, out: Path, svg: bool) -> None:

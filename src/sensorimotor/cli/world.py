@@ -18,7 +18,7 @@ from sensorimotor.files import check_writable, write_text_atomic
 from sensorimotor.sim import MAX_SEED
 
 world_app = typer.Typer(
-    help="Make world files: generated floor plans, imported ROS building maps.",
+    help="Make world files: generated floor plans, imported ROS or MRPT building maps.",
     no_args_is_help=True,
 )
 app.add_typer(world_app, name="world")
@@ -67,13 +67,17 @@ def random_world(
 
 @world_app.command("import")
 def import_world(
-    map_yaml: Annotated[Path, typer.Argument(help="ROS map_server .yaml (beside its image).")],
+    map_yaml: Annotated[
+        Path, typer.Argument(help="ROS map_server .yaml (beside its image) or MRPT .gridmap[.gz].")
+    ],
     out: WorldOut,
     name: Annotated[str | None, typer.Option(help="World name (default: the map's).")] = None,
 ) -> None:
-    """A building map: a ROS map_server occupancy grid (.yaml + .pgm/.png) as wall segments."""
-    from sensorimotor.sim.rosmap import import_ros_map
+    """A building map: a ROS map_server occupancy grid (.yaml + .pgm/.png) or an MRPT
+    occupancy grid (.gridmap, .gridmap.gz) as wall segments."""
+    from sensorimotor.sim.rosmap import import_mrpt_map, import_ros_map
 
     _check_toml(out)
-    world, comment = import_ros_map(map_yaml, name)
+    mrpt = map_yaml.name.lower().endswith((".gridmap", ".gridmap.gz"))
+    world, comment = (import_mrpt_map if mrpt else import_ros_map)(map_yaml, name)
     _write(world, out, comment)

@@ -1,4 +1,5 @@
-"""Real building maps: a ROS ``map_server`` occupancy grid turned into a world's wall segments.
+"""Real building maps: a ROS ``map_server`` occupancy grid (or MRPT's, ``import_mrpt_map``) turned
+into a world's wall segments.
 
 A map is a ``.yaml`` file beside an image (``.pgm`` or ``.png``), the format robotics labs
 keep their buildings in (http://wiki.ros.org/map_server#Map_format)::
@@ -38,6 +39,8 @@ from sensorimotor.sim.world import NAME_PATTERN, World, world_from_dict
 KEYS = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh", "mode")
 NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 MAX_IMAGE_BYTES = 1 << 30  # a map image: a building at 1 cm a pixel is far less
+FREE_THRESH = 0.196  # an MRPT grid's cell is free below this occupancy (map_server's default)
+SPECK_CELLS = 2  # blocked specks of at most this many cells inside the free region: noise
 
 
 def _value(text: str):
@@ -166,17 +169,73 @@ def import_ros_map(path: str | Path, name: str | None = None) -> tuple[World, st
     blocked = ~(occupancy < free)  # occupied or unknown
     if blocked.all():
         raise InputError(f"{path}: the map has no free pixel (free_thresh {free:g})")
-    walls = wall_segments(blocked[::-1], resolution)  # row 0 of the image is the top
-    stem = re.sub(r"[^A-Za-z0-9_.+-]+", "-", path.stem).strip("_.+-") or "map"
-    name = name or stem
-    if not NAME_PATTERN.fullmatch(name):
-        raise InputError(f"{path}: cannot name the world {name!r}")
-    world = world_from_dict(
-        {"name": name, "size": [cols * resolution, rows * resolution], "walls": walls}, str(path)
-    )
+    world = grid_world(blocked[::-1], resolution, name or _stem(path), path)  # row 0: the top
     comment = (
         f"imported from the ROS map {path.name} ({meta['image']}, {cols} x {rows} pixels of "
         f"{resolution:g} m; origin {origin}: add it to go back to map coordinates)"
+    )
+    return world, comment
+
+
+def _stem(path: Path) -> str:
+    stem = path.name.removesuffix(".gz").removesuffix(".gridmap").removesuffix(".yaml")
+    return re.sub(r"[^A-Za-z0-9_.+-]+", "-", stem).strip("_.+-") or "map"
+
+
+def grid_world(blocked: np.ndarray, resolution: float, name: str, path: Path) -> World:
+    """The world of an occupancy grid: ``blocked`` (rows, cols; row 0 at y = 0) cells of
+    ``resolution`` (units), walls along every edge between a blocked and a free cell
+    (``wall_segments``), the grid's rectangle the world's, its lower-left corner at (0, 0)."""
+    if not NAME_PATTERN.fullmatch(name):
+        raise InputError(f"{path}: cannot name the world {name!r}")
+    rows, cols = blocked.shape
+    walls = wall_segments(blocked, resolution)
+    return world_from_dict(
+        {"name": name, "size": [cols * resolution, rows * resolution], "walls": walls}, str(path)
+    )
+
+
+def import_mrpt_map(path: str | Path, name: str | None = None) -> tuple[World, str]:
+    """The world of an MRPT occupancy grid (``.gridmap``, ``.gridmap.gz``; read by
+    ``sim.mrpt.read_gridmap``) and its world file's comment.
+
+    Thresholds, those of a ROS map (``free_thresh`` 0.196): a cell is free when its occupancy
+    (1 - MRPT's P(free)) is below ``FREE_THRESH``; else blocked (occupied or unknown). The world
+    is the free space the robot can reach: the largest 4-connected free region (free cells cut
+    off from it, unreachable, are blocked); blocked specks of at most ``SPECK_CELLS`` cells
+    inside it (laser noise: under 0.03 m^2 at MRPT's 8 cm) are made free, so they do not become
+    four walls each. The grid is cropped to that region's bounding box and one cell around, in
+    metres (a unit a metre, as ``import-rawlog``'s default scale)."""
+    from scipy import ndimage
+
+    from sensorimotor.sim.mrpt import read_gridmap
+
+    path = Path(path)
+    grid = read_gridmap(path)
+    free = (1.0 - grid.free) < FREE_THRESH
+    labels, n = ndimage.label(free)
+    if n == 0:
+        raise InputError(f"{path}: the grid has no free cell (occupancy below {FREE_THRESH:g})")
+    sizes = np.bincount(labels.ravel())
+    sizes[0] = 0
+    region = labels == int(np.argmax(sizes))
+    blocked_labels, _ = ndimage.label(~region)
+    speck = np.bincount(blocked_labels.ravel()) <= SPECK_CELLS
+    speck[0] = False
+    region |= speck[blocked_labels]
+    ys, xs = np.nonzero(region)
+    y0, y1 = max(int(ys.min()) - 1, 0), min(int(ys.max()) + 2, region.shape[0])
+    x0, x1 = max(int(xs.min()) - 1, 0), min(int(xs.max()) + 2, region.shape[1])
+    blocked = ~region[y0:y1, x0:x1]
+    res = float(f"{grid.resolution:.6g}")  # the float32 0.0799999982 is 0.08
+    world = grid_world(blocked, res, name or _stem(path), path)
+    origin = [grid.x_min + x0 * res, grid.y_min + y0 * res]
+    comment = (
+        f"imported from the MRPT gridmap {path.name} (COccupancyGridMap2D {grid.version}, "
+        f"{grid.free.shape[1]} x {grid.free.shape[0]} cells of {res:g} m; free: occupancy < "
+        f"{FREE_THRESH:g}, the largest connected free region, specks of <= {SPECK_CELLS} cells "
+        f"dropped; cropped to {x1 - x0} x {y1 - y0} cells at map ({origin[0]:.3f}, "
+        f"{origin[1]:.3f}) m: add it to go back to map coordinates)"
     )
     return world, comment
 
