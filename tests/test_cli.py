@@ -10,7 +10,7 @@ import stat
 import numpy as np
 import pytest
 
-from conftest import assert_one_line_error
+from conftest import assert_one_line_error, run_cli
 from sensorimotor.sim.database import generate, load_database
 from sensorimotor.sim.world import load_world
 from sim.test_world import BAD_WORLD_FILES
@@ -206,3 +206,13 @@ def test_progress_into_a_log_prints_the_first_line_then_at_most_every_log_every_
             update(i, f"item {i}")
     lines = capsys.readouterr().err.splitlines()
     assert lines == ["work 1 of 5: item 1", "work 4 of 5: item 4", "work 5 of 5: item 5"]
+
+
+def test_reproduce_help_names_every_registered_experiment():
+    from sensorimotor.experiments import EXPERIMENTS
+
+    proc = run_cli("reproduce", "--help")
+    assert proc.returncode == 0
+    text = " ".join(proc.stdout.split())
+    for name in EXPERIMENTS:
+        assert f"{name} (" in text, name

@@ -378,3 +378,12 @@ def test_a_world_of_unknown_walls_is_drawn_and_labelled_as_a_bounding_box():
             bounding_box=bounding_box,
         )
         assert ("bounding box" in ax.get_title()) == bounding_box
+
+
+def test_the_summary_warns_when_the_planner_does_not_beat_the_random_behaviour():
+    from sensorimotor.analysis.map.mapping import _planning_warning
+
+    assert _planning_warning({"success": {"map": 0.41, "random": 0.34}}) == []
+    (line,) = _planning_warning({"success": {"map": 0.34, "random": 0.34}})
+    assert "no more goals than the random behaviour (0.34 vs 0.34)" in line
+    assert _planning_warning({"success": {"map": None, "random": 0.34}}) == []

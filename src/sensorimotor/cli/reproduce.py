@@ -55,7 +55,9 @@ def reproduce(
         str | None,
         typer.Option(
             help="Experiments past the paper to run after its stages, comma-separated, each "
-            "with its own report section (none: only the paper; default: the cheap ones)."
+            "with its own report section: map (a map learned from the cells), scaling (more "
+            "rays, noise, unseen floor plans), rl (PPO agents on the Rooms1 encoders), walls "
+            "(Table I over wall layouts that fit the paper's sentences). Default: none."
         ),
     ] = None,
 ) -> None:

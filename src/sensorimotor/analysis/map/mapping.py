@@ -535,4 +535,19 @@ def summary_lines(m: dict) -> list[str]:
         f"{_fmt(r['adjusted_rand_cells'])} (cells)",
         f"  planning success: map {_fmt(m['planning']['success']['map'], '.2f')}, random "
         f"{_fmt(m['planning']['success']['random'], '.2f')} ({m['planning']['pairs']} pairs)",
+        *_planning_warning(m["planning"]),
+    ]
+
+
+def _planning_warning(planning: dict) -> list[str]:
+    """A warning where the map's planner reaches no more goals than the random behaviour: its
+    plans then say nothing about the map (too little data or too few clones to tell places
+    apart, or a representation whose cells do not)."""
+    ours, chance = planning["success"]["map"], planning["success"]["random"]
+    if ours is None or chance is None or ours > chance:
+        return []
+    return [
+        f"  warning: the planner reached no more goals than the random behaviour ({ours:.2f} vs "
+        f"{chance:.2f}): the map does not tell the places apart well enough to plan; try more "
+        "data (a larger database or --scale paper) or more --clones"
     ]
