@@ -216,3 +216,13 @@ def test_reproduce_help_names_every_registered_experiment():
     text = " ".join(proc.stdout.split())
     for name in EXPERIMENTS:
         assert f"{name} (" in text, name
+
+
+def test_generates_default_name_says_what_differs_from_the_papers_recording():
+    from sensorimotor.cli.data import default_name
+
+    paper = ("rooms1", 0, 5, 1.2, 10.0, 0.0, "absolute", 0.0, 0.0)
+    assert default_name(*paper).name == "rooms1_s0.npz"
+    noisy = default_name("rooms1", 0, 64, 6.283185, 8.0, 0.05, "relative", 0.01, 0.02)
+    assert noisy.name == "rooms1_s0_rays64_fov6.28318_range8_noise0.05rel_dropout0.01_motornoise0.02.npz"
+    assert default_name("rooms1", 0, 5, 1.2, 10.0, 0.05, "absolute", 0.0, 0.0) != default_name(*paper)

@@ -22,6 +22,20 @@ from sensorimotor.errors import InputError
 from sensorimotor.sim import MAX_SEED
 
 
+def default_name(world: str, seed: int, rays: int, fov: float, range_: float, noise: float,
+                 noise_kind: str, dropout: float, motor_noise: float) -> Path:  # fmt: skip
+    """``WORLD_sSEED.npz`` with each setting that differs from the paper's recording appended,
+    so that two different recordings never take one default name."""
+    parts = [f"{world}_s{seed}"]
+    parts += [f"rays{rays}"] if rays != 5 else []
+    parts += [f"fov{fov:g}"] if fov != 1.2 else []
+    parts += [f"range{range_:g}"] if range_ != 10.0 else []
+    parts += [f"noise{noise:g}" + ("rel" if noise_kind == "relative" else "")] if noise else []
+    parts += [f"dropout{dropout:g}"] if dropout else []
+    parts += [f"motornoise{motor_noise:g}"] if motor_noise else []
+    return Path("_".join(parts) + ".npz")
+
+
 @app.command()
 def generate(
     world: WorldArg,
@@ -30,7 +44,11 @@ def generate(
         int, typer.Option(min=0, max=MAX_SEED, help="Seed of the random generator (PCG64).")
     ] = 0,
     out: Annotated[
-        Path | None, typer.Option(help="Output .npz (default: WORLD_sSEED.npz).")
+        Path | None,
+        typer.Option(
+            help="Output .npz (default: WORLD_sSEED.npz, with what differs from the paper's "
+            "recording appended, e.g. rooms1_s0_rays64_noise0.05.npz)."
+        ),
     ] = None,
     rays: Annotated[int, typer.Option(help="Lasers recorded (1 to 1,024); the paper's: 5.")] = 5,
     fov: Annotated[
@@ -71,7 +89,8 @@ def generate(
     layout = spread_layout(rays, fov, range_)
     check_noise(noise, noise_kind, dropout, motor_noise)
     w = load_world(world)
-    out = out or Path(f"{w.name}_s{seed}.npz")
+    out = out or default_name(w.name, seed, rays, fov, range_, noise, noise_kind, dropout,
+                              motor_noise)  # fmt: skip
     check_writable(out)
     check_memory(steps, 12 * (rays + 5))
     with progress(f"generate {w.name}: steps", steps) as update:
