@@ -285,3 +285,24 @@ def test_agents_trained_as_jobs_of_worker_processes_are_those_trained_here(tmp_p
     assert (tmp_path / "jobs" / "rl.json").read_bytes() == (
         tmp_path / "here" / "rl.json"
     ).read_bytes()
+
+
+def test_no_verdict_on_the_features_when_the_oracle_does_not_beat_random():
+    from sensorimotor.rl.results import verdicts
+
+    def scores(*values):
+        return {"success": {"per_seed": list(values)}}
+
+    results = {
+        "pose": scores(0.10, 0.12, 0.11),  # the oracle learned nothing above random
+        "random": scores(0.30, 0.31, 0.29),
+        "raw": scores(0.10, 0.11, 0.12),
+        "sm": scores(0.60, 0.62, 0.61),
+        "rec-sm": scores(0.60, 0.63, 0.61),
+    }
+    v = verdicts(results)
+    assert v["pose_beats_random"]["holds"] is False
+    assert v["motors_help"]["holds"] is None
+    assert "sanity check" in v["motors_help"]["numbers"]
+    results["pose"] = scores(0.90, 0.92, 0.91)
+    assert verdicts(results)["motors_help"]["holds"] is True

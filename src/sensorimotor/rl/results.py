@@ -66,7 +66,9 @@ def summary_lines(rl: dict) -> list[str]:
     """One line per feature set of ``rl.json``: final success, its CI and IQM, transfer; then
     the verdicts."""
     lines = []
-    for score, how in (("success", "deterministic"), ("success_stochastic", "stochastic")):
+    scores = {"success": "deterministic", "success_stochastic": "stochastic"}
+    for score in sorted(scores, key=lambda k: k != HEADLINE):  # the headline score first
+        how = scores[score]
         lines.append(f"final success, {how} policy, mean [95 % CI] IQM, then transfer:")
         for name, r in rl["results"].items():
             ok = r[score]
@@ -150,7 +152,7 @@ def verdicts(results: dict, score: str = "success") -> dict:
     learned = {f: d for f, d in learned.items() if d is not None}
     pose = diff("pose", "random")
     later = f"{WHERE}; this comparison since 87ac377, after them"
-    return {
+    out = {
         "motors_beat_random": {  # is it what the encoder learned, or any recurrent features?
             **_verdict(LEARNED, "random", learned, seeds, later),
             "differences": learned,
@@ -165,3 +167,8 @@ def verdicts(results: dict, score: str = "success") -> dict:
             "difference": pose,
         },
     }
+    if out["pose_beats_random"]["holds"] is False:  # agents that learn nothing judge nothing
+        for name in ("motors_beat_random", "motors_help"):
+            out[name]["holds"] = None
+            out[name]["numbers"] += " (no verdict: the sanity check, pose above random, failed)"
+    return out
