@@ -225,6 +225,9 @@ def verdict_lines(rl: dict, score: str = HEADLINE) -> list[tuple[str, bool | Non
                 verdict_holds(pose),
             )
         )
+        if verdict_holds(pose) is False:
+            why = "no verdict: the agents on the true pose do not beat random ones"
+            lines.append((f"{CLAIM} ({how}): {why}.", None))
     motors = v["motors_help"]
     if verdict_holds(motors) is not None:
         held = word(verdict_holds(motors), "supported", "NOT supported")
