@@ -270,3 +270,26 @@ def test_the_html_links_its_sections_colours_verdicts_folds_grids_and_shrinks_im
     with Image.open(io.BytesIO(embedded_png(big))) as im:
         assert im.width == MAX_IMAGE_WIDTH
     assert len(embedded_png(big)) < big.stat().st_size
+
+
+def test_the_summary_says_which_claims_need_the_paper_scale():
+    from types import SimpleNamespace
+
+    from sensorimotor.pipeline.paper import SCALES
+    from sensorimotor.report.document import _summary, needs_paper
+    from sensorimotor.stats import BEFORE, Verdict
+
+    corner = "Motors grow a corner cluster: the best cluster's corner F1 ..."
+    assert needs_paper(SCALES["quick"], corner)
+    assert not needs_paper(SCALES["paper"], corner)
+    verdicts = [
+        Verdict(corner, "t", "m", "n", False, BEFORE, "w"),
+        Verdict("Table I ordering ...", "t", "m", "n", True, BEFORE, "w"),
+    ]
+    table_one = {"tables": {}, "worlds": []}
+    for name, expected in (("quick", "not supported; needs --scale paper"), ("paper", "not supported")):
+        rep = SimpleNamespace(scale=SCALES[name], table=table_one)
+        blocks = _summary(rep, verdicts)
+        rows = next(b.content[1] for b in blocks if b.kind == "table")
+        assert rows[0][1] == expected
+        assert rows[1][1] == "supported"

@@ -35,7 +35,14 @@ def label(name: str) -> str:
 
 MAX_IMAGE_WIDTH = 1100  # pixels of an image embedded in the HTML: the page's width
 IMAGE_COLOURS = 128  # the embedded PNG's palette: plots and arrows need no more
-VERDICT_CLASS = {"supported": "yes", "holds": "yes", "not supported": "no", "fails": "no"}
+VERDICT_CLASS = {
+    "supported": "yes",
+    "holds": "yes",
+    "not supported": "no",
+    "fails": "no",
+    "not supported; needs --scale paper": "later",
+    "n/a; needs --scale paper": "later",
+}
 
 
 @dataclass(frozen=True)
@@ -166,7 +173,8 @@ def to_html(blocks: list[Block], title: str) -> str:
         "td:first-child,th:first-child{text-align:left}img{max-width:100%}"
         "figure{margin:1em 0}figcaption{font-style:italic;color:#555}"
         "pre{background:#f6f6f6;padding:0.8em;overflow-x:auto}"
-        "td.yes,td.no{white-space:nowrap;text-align:center}"
+        "td.yes,td.no,td.later{white-space:nowrap;text-align:center}td.later{color:#7a5a00;"
+        "background:#fbf3d9}"
         "td.yes{background:#dff3df;color:#135e13}td.no{background:#f8dede;color:#8a1414}"
         "details{margin:0.4em 0}summary{cursor:pointer;color:#235}ul.toc{columns:2}"
     )
@@ -254,7 +262,19 @@ def _summary(rep, verdicts: list) -> list[Block]:
     b = [h(2, "Summary")]
     if rep.scale.caveat:
         b.append(p(f"**Note.** {rep.scale.caveat}"))
-    b.append(table(["the paper's claim", "verdict"], [[v.claim, v.word()] for v in verdicts]))
+    beyond = [v for v in verdicts if v.holds is not True and needs_paper(rep.scale, v.claim)]
+    if beyond:
+        b.append(
+            p(
+                f"**Needs `--scale paper`.** {len(beyond)} of the claims below are beyond the "
+                f"{rep.scale.name} scale (measured: its models are too little trained for them) "
+                "and are not supported or not judged here; their rows say so."
+            )
+        )
+    rows = [
+        [v.claim, v.word() + ("; needs --scale paper" if v in beyond else "")] for v in verdicts
+    ]
+    b.append(table(["the paper's claim", "verdict"], rows))
     rows_t = rep.table["tables"].get("square")
     if rows_t:
         worlds = rep.table["worlds"]
@@ -271,6 +291,11 @@ def _summary(rep, verdicts: list) -> list[Block]:
         b.append(table(["model", *worlds], body))
         b.append(p(paper_agreement(rows_t, worlds)))
     return b
+
+
+def needs_paper(scale, claim: str) -> bool:
+    """Whether ``claim`` is one that ``scale`` is too small to support (``Scale.beyond``)."""
+    return any(claim.startswith(start) for start in getattr(scale, "beyond", ()))
 
 
 def _settings(rep, hardware: dict) -> list[Block]:
