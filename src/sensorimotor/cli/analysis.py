@@ -80,8 +80,11 @@ def map_cmd(
     check_settings(clusters, clones, contexts)
     with progress(f"mapping {run} on {data}") as update:
 
-        def note(stage: str, i: int, ll: float) -> None:
-            update(message=f"{stage} iteration {i}, {ll:.4f} nats/step")
+        def note(stage: str, i: int, number: float) -> None:
+            if stage == "planning pair":
+                update(message=f"planning pair {i} of {pairs}, success so far {number:.2f}")
+            else:
+                update(message=f"{stage} iteration {i}, {number:.4f} nats/step")
 
         result = map_files(
             *(run, data, out, clusters, clones, fit_data, seed),

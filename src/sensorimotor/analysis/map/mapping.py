@@ -402,7 +402,9 @@ def map_files(
     contexts: int = N_CONTEXTS,
 ) -> MapResult:
     """Build the map of ``run``'s representation (``"raw"`` or a run folder) of ``data`` and
-    write ``map.json``, the GraphML files and the figures into ``out`` (module docstring)."""
+    write ``map.json``, the GraphML files and the figures into ``out`` (module docstring).
+    ``progress(stage, i, number)``: after each EM or Viterbi iteration (its log-likelihood per
+    step) and each planning pair (the map's success so far)."""
     from sensorimotor.analysis.map.plots import plot_map_graph, plot_place_fields, plot_plans
     from sensorimotor.sim.plots import save_figure
 
@@ -435,9 +437,11 @@ def map_files(
     plans, traces = {"success": {"map": None, "random": None}, "pairs": 0}, []
     if pairs:
         encoder = encoder_of(run, db.max_range)
+        on_pair = None if progress is None else lambda i, rate: progress("planning pair", i, rate)
         plans, traces = planning(
-            world, db.layout, encoder, kmeans, model, state_mean, occupancy, seed, pairs
-        )
+            world, db.layout, encoder, kmeans, model, state_mean, occupancy, seed, pairs,
+            progress=on_pair,
+        )  # fmt: skip
     metrics = {
         "run": RAW if run == RAW else str(run.path),
         "model": RAW if run == RAW else run.kind,

@@ -176,11 +176,13 @@ def planning(
     seed: int = 0,
     n_pairs: int = N_PAIRS,
     budget: int = BUDGET,
+    progress=None,
 ) -> tuple[dict, list]:
     """Success rates of the map's planner and of the random behaviour over ``n_pairs``
     start/goal pairs (module docstring), and the first N_TRACES of the map's episodes as
     (positions (n, 2), goal (2,), steps or None). ``encoder()`` returns a fresh function from
-    one reading (R,) to its representation (D,)."""
+    one reading (R,) to its representation (D,); ``progress(pairs done, success so far)``
+    after each pair."""
     rng = np.random.default_rng(seed)
     reached = {"map": [], "random": []}
     traces = []
@@ -208,6 +210,8 @@ def planning(
             reached[name].append(steps)
         if pair < N_TRACES:
             traces.append((np.array(trace), goal_xy, reached["map"][-1]))
+        if progress is not None:
+            progress(pair + 1, sum(s is not None for s in reached["map"]) / (pair + 1))
     out = {"success": {}, "median_steps": {}, "pairs": n_pairs, "budget": budget}
     for name, steps in reached.items():
         done = [s for s in steps if s is not None]
