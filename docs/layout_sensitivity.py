@@ -1,7 +1,7 @@
 """How much of Table I is the layout? The published Square models (docs/results/runs) tested on
 families of Rooms1 and Rooms2 layouts that fit the paper's sentences (``experiments.walls``).
 
-Run by hand: ``python docs/layout_sensitivity.py [--layouts 10] [--data-seeds 2] [--steps
+Run by hand: ``python docs/layout_sensitivity.py [--layouts 20] [--data-seeds 2] [--steps
 100000] [--out docs/results]``; writes ``layout_sensitivity.json`` and ``.md`` into --out.
 """
 
@@ -12,7 +12,7 @@ import json
 import sys
 from pathlib import Path
 
-from sensorimotor.experiments.walls import sensitivity_markdown, wall_sensitivity
+from sensorimotor.experiments.walls import FAMILY_SIZE, sensitivity_markdown, wall_sensitivity
 from sensorimotor.files import write_text_atomic
 
 ROOT = Path(__file__).resolve().parent
@@ -21,7 +21,7 @@ ROOT = Path(__file__).resolve().parent
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=Path, default=ROOT / "results" / "runs")
-    parser.add_argument("--layouts", type=int, default=10, help="layouts per family")
+    parser.add_argument("--layouts", type=int, default=FAMILY_SIZE, help="layouts per family")
     parser.add_argument("--data-seeds", type=int, default=2, help="test databases per layout")
     parser.add_argument("--steps", type=int, default=100_000, help="steps per test database")
     parser.add_argument("--out", type=Path, default=ROOT / "results")

@@ -34,6 +34,20 @@ def test_layout_families_fit_the_papers_sentences(world, horizontal, vertical):
             assert d.min() < 1e-9
 
 
+def test_no_layout_of_a_family_seals_a_room():
+    from sensorimotor.sim.floorplan import free_regions
+    from sensorimotor.sim.world import world_from_dict
+
+    sealed = world_from_dict({"name": "x", "size": 50.0, "walls": [[15, 25, 15, 50], [0, 25, 15, 25]]})
+    assert free_regions(sealed) == 2  # the 15 x 25 box the old Rooms1 family accepted
+    assert free_regions(load_world("rooms1")) == 1
+    for world in ("rooms1", "rooms2"):
+        family = walls.wall_family(world)
+        assert len(family) == walls.FAMILY_SIZE == 20
+        assert all(free_regions(w) == 1 for w in family)
+        assert sealed.walls.tolist() not in [w.walls.tolist() for w in family]
+
+
 def _context(tmp_path, run, jobs_seen: list):
     rep = SimpleNamespace(
         out=tmp_path,
@@ -66,6 +80,10 @@ def test_the_walls_experiment_tests_the_square_runs_on_each_family_and_keeps_its
         assert len(cell["per_layout"]) == layouts
         assert cell["min"] <= cell["builtin"] <= cell["max"]
         assert cell["paper"] == pytest.approx({"rooms1": 0.04299, "rooms2": 0.07290}[world])
+        assert found["worlds"][world]["reachable"] == [True] * layouts
+        low, high = cell["band_5_95"]
+        assert cell["min"] <= low <= high <= cell["max"]
+        assert 0.0 <= found["worlds"][world]["share_within"] <= 1.0
     again: list[str] = []
     assert ex.run_experiment(_context(tmp_path, run, again)) == found
     assert again == []  # kept: nothing evaluated twice

@@ -124,17 +124,11 @@ def _cut(box, door: float, min_side: float, doors: list[_Door], rng: np.random.G
     return halves, walls, _Door(vertical, at, *opening)
 
 
-def check_reachable(world: World, resolution: float = FLOOD_RESOLUTION) -> list[str]:
-    """The names of the rooms that no path from the first room reaches (empty: all reachable).
-
-    Flood fill on a grid of ``resolution``: a cell is blocked when a wall passes within half a
-    cell of its centre; the rooms are connected when the free cells inside each room belong
-    to the component of the first room's free cells (4-neighbour connectivity).
-    """
+def _flood(world: World, resolution: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(labels, blocked, xs, ys): the free cells of a grid of ``resolution`` labelled by their
+    4-neighbour component (0: blocked); a cell is blocked when a wall passes through it."""
     from scipy import ndimage
 
-    if not world.rooms:
-        return []
     xs = np.arange(resolution / 2, world.width, resolution)
     ys = np.arange(resolution / 2, world.height, resolution)
     blocked = np.zeros((len(ys), len(xs)), dtype=bool)
@@ -145,6 +139,19 @@ def check_reachable(world: World, resolution: float = FLOOD_RESOLUTION) -> list[
         iy = np.clip(((y0 + t * (y1 - y0)) / resolution).astype(int), 0, len(ys) - 1)
         blocked[iy, ix] = True
     labels, _ = ndimage.label(~blocked)
+    return labels, blocked, xs, ys
+
+
+def check_reachable(world: World, resolution: float = FLOOD_RESOLUTION) -> list[str]:
+    """The names of the rooms that no path from the first room reaches (empty: all reachable).
+
+    Flood fill on a grid of ``resolution``: a cell is blocked when a wall passes within half a
+    cell of its centre; the rooms are connected when the free cells inside each room belong
+    to the component of the first room's free cells (4-neighbour connectivity).
+    """
+    if not world.rooms:
+        return []
+    labels, blocked, xs, ys = _flood(world, resolution)
     gx, gy = np.meshgrid(xs, ys)
     inside = [
         world.room_index(gx.ravel(), gy.ravel()).reshape(gx.shape) == k
@@ -156,6 +163,18 @@ def check_reachable(world: World, resolution: float = FLOOD_RESOLUTION) -> list[
         for room, cells in zip(world.rooms, inside, strict=True)
         if not first & set(np.unique(labels[cells & ~blocked]))
     ]
+
+
+MIN_REGION = 1.0  # square units: a free region smaller is a sliver of the flood fill's grid
+
+
+def free_regions(world: World, resolution: float = FLOOD_RESOLUTION) -> int:
+    """How many separate free regions the walls leave (a room sealed by walls is one more);
+    1: every free place is reachable from every other. Regions under ``MIN_REGION`` are not
+    counted: where two walls meet, the grid may leave a few cells between them."""
+    labels, _, _, _ = _flood(world, resolution)
+    sizes = np.bincount(labels.ravel())[1:] * resolution**2
+    return int((sizes >= MIN_REGION).sum())
 
 
 def world_toml(world: World, comment: str = "") -> str:
