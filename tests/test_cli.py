@@ -226,3 +226,29 @@ def test_generates_default_name_says_what_differs_from_the_papers_recording():
     noisy = default_name("rooms1", 0, 64, 6.283185, 8.0, 0.05, "relative", 0.01, 0.02)
     assert noisy.name == "rooms1_s0_rays64_fov6.28318_range8_noise0.05rel_dropout0.01_motornoise0.02.npz"
     assert default_name("rooms1", 0, 5, 1.2, 10.0, 0.05, "absolute", 0.0, 0.0) != default_name(*paper)
+
+
+def test_every_commands_help_renders_every_option_help_whole():
+    """No help text is eaten as markup ("[train]" is a TOML table), for every command."""
+    import typer.main
+    from typer.testing import CliRunner
+
+    from sensorimotor.cli import app
+
+    def walk(command, path=()):
+        subs = getattr(command, "commands", {})
+        yield path, command
+        for name, sub in subs.items():
+            yield from walk(sub, (*path, name))
+
+    runner = CliRunner()
+    seen = 0
+    for path, command in walk(typer.main.get_command(app)):
+        result = runner.invoke(app, [*path, "--help"], terminal_width=400)
+        assert result.exit_code == 0, (path, result.output)
+        text = " ".join(result.output.split())
+        for param in command.params:
+            words = " ".join((getattr(param, "help", None) or "").split())
+            assert words in text, (path, param.name, words)
+            seen += "[" in words
+    assert seen >= 1  # the sweep file's "[train], [space], [asha]" among them

@@ -22,6 +22,7 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    rich_markup_mode=None,  # help text is plain: "[train]" is a TOML table, not Rich markup
 )
 err_console = Console(stderr=True, soft_wrap=True)
 
