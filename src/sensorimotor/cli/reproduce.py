@@ -22,10 +22,11 @@ def reproduce(
     scale: Annotated[
         str,
         typer.Option(
-            help="smoke: 20,000-step databases, 2 epochs a model, 1 seed (about a minute; it "
+            help="smoke: 20,000-step databases, 2 epochs a model, 1 seed (under a minute; it "
             "tests the pipeline, not the paper). quick: 200,000 steps, epochs capped at 10 (S, "
-            "SM), 30 (Rec-S), 80 (Rec-SM), 1 seed (a few minutes). paper: the paper's protocol, "
-            "1,000,000 steps, early stopping, 5 seeds (35-50 min on 2 CPU cores, by CPU)."
+            "SM), 30 (Rec-S), 80 (Rec-SM), 1 seed (2-4 min on 2 CPU cores; the report names "
+            "the claims it is too small for). paper: the paper's protocol, 1,000,000 steps, "
+            "early stopping, 5 seeds (32-53 min on 2 CPU cores, by CPU: docs/benchmarks.md)."
         ),
     ] = "quick",
     out: Annotated[Path, typer.Option(help="Output folder (cached stages are reused).")] = Path(
