@@ -269,6 +269,10 @@ def test_cli_map_writes_strict_json_graphml_and_figures(cli, rooms1_db_path, tmp
     assert set(b) >= {"unigram", "markov", "cell_graph", "map"}
     assert b["markov"] < b["unigram"]
     assert b["map"] < b["unigram"]
+    higher = m["baselines"]["bits_per_step"]
+    assert set(higher) == {"markov2", "markov3"}
+    assert all(0 < v < b["unigram"] for v in higher.values())
+    assert "baselines, bits/step: markov2" in proc.stdout
     for key in ("room_accuracy", "position_error"):
         assert set(m["localisation"][key]) == {"map", "cells", "chance"}
     assert m["rooms"]["names"] == ["southwest", "northwest", "east"]
@@ -387,3 +391,23 @@ def test_the_summary_warns_when_the_planner_does_not_beat_the_random_behaviour()
     (line,) = _planning_warning({"success": {"map": 0.34, "random": 0.34}})
     assert "no more goals than the random behaviour (0.34 vs 0.34)" in line
     assert _planning_warning({"success": {"map": None, "random": 0.34}}) == []
+
+
+def test_the_higher_order_baselines_back_off_to_markov_and_learn_a_second_order_process():
+    from sensorimotor.analysis.map.cells import baseline_bits, ngram_bits
+
+    rng = np.random.default_rng(0)
+    k = 6
+
+    def second_order(n):  # the next cell depends on the last two cells: order 2 knows it
+        c, a = np.zeros(n, dtype=np.int64), rng.integers(0, 4, n)
+        c[1] = 1
+        for t in range(2, n):
+            c[t] = (c[t - 1] + c[t - 2]) % k if rng.random() < 0.95 else rng.integers(k)
+        return c, a
+
+    train, test = second_order(20_000), second_order(5_000)
+    base = baseline_bits(*train, *test, k)
+    assert ngram_bits(*train, *test, k, 0) == pytest.approx(base["unigram"])
+    assert ngram_bits(*train, *test, k, 1) == pytest.approx(base["markov"])
+    assert ngram_bits(*train, *test, k, 2) < base["markov"] - 0.5

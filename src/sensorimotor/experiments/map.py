@@ -52,12 +52,14 @@ PAIRS = {
     "smoke": 10,
     "quick": 100,
 }  # planning start/goal pairs by scale; otherwise planning.N_PAIRS
-STAGE_VERSION = 2  # bump when the map's numbers change for the same inputs
+STAGE_VERSION = 3  # bump when the map's numbers change for the same inputs (3: baselines)
 
 # (key in the aggregate, path in map.json, row label in the report, format)
 METRICS = (
     ("bits.unigram", "bits_per_step.unigram", "bits/step: unigram", ".3f"),
     ("bits.markov", "bits_per_step.markov", "bits/step: Markov (cell, action)", ".3f"),
+    ("bits.markov2", "baselines.bits_per_step.markov2", "bits/step: 2nd-order Markov", ".3f"),
+    ("bits.markov3", "baselines.bits_per_step.markov3", "bits/step: 3rd-order Markov", ".3f"),
     ("bits.cell_graph", "bits_per_step.cell_graph", "bits/step: cell graph", ".3f"),
     ("bits.map_em", "bits_per_step.map_em", "bits/step: map after EM (unsplit)", ".3f"),
     ("bits.map", "bits_per_step.map", "bits/step: map", ".3f"),

@@ -179,3 +179,56 @@ def baseline_bits(
         "markov": table_bits(markov_table(counts, prior, beta), test_cells, test_actions),
         "cell_graph": table_bits(graph_table(counts, prior, beta), test_cells, test_actions),
     }
+
+
+def ngram_bits(
+    train_cells: np.ndarray,
+    train_actions: np.ndarray,
+    test_cells: np.ndarray,
+    test_actions: np.ndarray,
+    k: int,
+    order: int,
+    n_actions: int = N_ACTIONS,
+    beta: float = SMOOTHING,
+) -> float:
+    """Bits per step on the test sequence of an ``order``-th order (cell, action) model with
+    back-off, estimated on the training sequence: the next cell given the last ``order``
+    (cell, action) pairs, ``p_n(j | h_n) = (n(h_n, j) + beta p_{n-1}(j | h_{n-1})) /
+    (n(h_n) + beta)``, down to the unigram at order 0. Order 1 is ``markov_table``'s model; a
+    history not seen in training (or cut by the sequence's start) leaves its lower order as is.
+    """
+    train_cells, train_actions = check_sequence(train_cells, train_actions, k, n_actions)
+    test_cells, test_actions = check_sequence(test_cells, test_actions, k, n_actions)
+    prior = unigram(train_cells, k)
+    p = prior[test_cells[1:]]  # (T - 1,) order 0
+    for n in range(1, order + 1):
+        train_h = _histories(train_cells, train_actions, k, n_actions, n)  # (N - 1,) or -1
+        test_h = _histories(test_cells, test_actions, k, n_actions, n)
+        seen = train_h >= 0
+        pairs = train_h[seen] * k + train_cells[1:][seen]
+        keys, counts = np.unique(pairs, return_counts=True)
+        hists, totals = np.unique(train_h[seen], return_counts=True)
+        n_pair = _lookup(keys, counts, np.where(test_h >= 0, test_h * k + test_cells[1:], -1))
+        n_hist = _lookup(hists, totals, test_h)
+        p = (n_pair + beta * p) / (n_hist + beta)
+    return bits(p)
+
+
+def _histories(cells: np.ndarray, actions: np.ndarray, k: int, n_actions: int, n: int):
+    """(N - 1,) int64 code of the last ``n`` (cell, action) pairs before each transition
+    ``t -> t + 1`` (-1 where the sequence starts too late for ``n`` of them)."""
+    pair = actions[:-1] * k + cells[:-1]  # (N - 1,) in [0, A K)
+    code = np.full(len(pair), -1, dtype=np.int64)
+    if len(pair) >= n:
+        code[n - 1 :] = 0
+        for i in range(n):  # the pair i steps back, as the digit of weight (A K)^i
+            code[n - 1 :] += pair[n - 1 - i : len(pair) - i] * (k * n_actions) ** i
+    return code
+
+
+def _lookup(keys: np.ndarray, counts: np.ndarray, queries: np.ndarray) -> np.ndarray:
+    """(Q,) float64 count of each query among ``keys`` (sorted, unique); 0 where absent."""
+    if len(keys) == 0:
+        return np.zeros(len(queries))
+    at = np.clip(np.searchsorted(keys, queries), 0, len(keys) - 1)
+    return np.where((keys[at] == queries) & (queries >= 0), counts[at], 0).astype(np.float64)

@@ -46,6 +46,7 @@ from sensorimotor.analysis.map.cells import (
     action_bins,
     baseline_bits,
     cell_graph,
+    ngram_bits,
 )
 from sensorimotor.analysis.map.chmm import (
     EM_ITERS,
@@ -464,6 +465,7 @@ def map_files(
         },
         "versions": _versions(),
         "bits_per_step": bits,
+        "baselines": {"bits_per_step": higher_orders(train, test, clusters)},
         "states": {
             "total": model.n_states,
             "active": int(model.active.sum()),
@@ -522,6 +524,18 @@ def _fmt(v, spec: str = ".3f") -> str:
     return "n/a" if v is None else format(v, spec)
 
 
+BASELINE_ORDERS = (2, 3)  # the (cell, action) models beside the first-order Markov model
+
+
+def higher_orders(train, test, clusters: int) -> dict[str, float]:
+    """Bits per step on the test split of the 2nd- and 3rd-order (cell, action) models with
+    back-off (``cells.ngram_bits``): the baselines a map must beat beyond first-order Markov."""
+    return {
+        f"markov{n}": ngram_bits(train.cells, train.actions, test.cells, test.actions, clusters, n)
+        for n in BASELINE_ORDERS
+    }
+
+
 def summary_lines(m: dict) -> list[str]:
     """The main numbers of a ``map.json`` as printable lines."""
     b, loc, r = m["bits_per_step"], m["localisation"], m["rooms"]
@@ -531,6 +545,7 @@ def summary_lines(m: dict) -> list[str]:
         f"{m['settings']['clones']} clones x {m['settings'].get('contexts', 1)} contexts, "
         f"{m['states']['active']} active states",
         "  bits/step: " + ", ".join(f"{k} {_fmt(v)}" for k, v in b.items()),
+        *_baseline_lines(m),
         f"  room accuracy: map {_fmt(ra['map'])}, cells {_fmt(ra['cells'])}, "
         f"chance {_fmt(ra['chance'])}",
         f"  position error: map {_fmt(pe['map'], '.2f')}, cells {_fmt(pe['cells'], '.2f')}, "
@@ -541,6 +556,14 @@ def summary_lines(m: dict) -> list[str]:
         f"{_fmt(m['planning']['success']['random'], '.2f')} ({m['planning']['pairs']} pairs)",
         *_planning_warning(m["planning"]),
     ]
+
+
+def _baseline_lines(m: dict) -> list[str]:
+    """The higher-order baselines' bits per step (none in a map.json made before them)."""
+    higher = m.get("baselines", {}).get("bits_per_step", {})
+    if not higher:
+        return []
+    return ["  baselines, bits/step: " + ", ".join(f"{k} {_fmt(v)}" for k, v in higher.items())]
 
 
 def _planning_warning(planning: dict) -> list[str]:
