@@ -16,7 +16,7 @@ from types import SimpleNamespace
 
 from sensorimotor.experiments.scaling import section
 from sensorimotor.files import write_text_atomic
-from sensorimotor.report.document import p, to_markdown
+from sensorimotor.report.blocks import p, to_markdown
 
 DEST = Path(__file__).parent / "results" / "scaling"
 

@@ -272,7 +272,9 @@ def test_cli_map_writes_strict_json_graphml_and_figures(cli, rooms1_db_path, tmp
     higher = m["baselines"]["bits_per_step"]
     assert set(higher) == {"markov2", "markov3"}
     assert all(0 < v < b["unigram"] for v in higher.values())
-    assert "baselines, bits/step: markov2" in proc.stdout
+    assert "baselines: bits/step markov2" in proc.stdout
+    readout = m["baselines"]["localisation"]["history_readout"]
+    assert 1 / 3 - 0.2 <= readout <= 1.0  # balanced accuracy over the three rooms of Rooms1
     for key in ("room_accuracy", "position_error"):
         assert set(m["localisation"][key]) == {"map", "cells", "chance"}
     assert m["rooms"]["names"] == ["southwest", "northwest", "east"]

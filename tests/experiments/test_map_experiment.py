@@ -15,7 +15,7 @@ from sensorimotor.experiments import map as map_stage
 from sensorimotor.jobs.workers import run_jobs
 from sensorimotor.learn.config import TrainConfig
 from sensorimotor.learn.train import train
-from sensorimotor.report.document import to_markdown
+from sensorimotor.report.blocks import to_markdown
 from sensorimotor.sim.database import generate, save_database
 from sensorimotor.sim.world import load_world
 from sensorimotor.stats import BEFORE

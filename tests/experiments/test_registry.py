@@ -12,7 +12,7 @@ import pytest
 
 from sensorimotor import experiments as ex
 from sensorimotor.errors import InputError
-from sensorimotor.report.document import h, p
+from sensorimotor.report.blocks import h, p
 
 
 @pytest.fixture

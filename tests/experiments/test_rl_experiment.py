@@ -15,7 +15,7 @@ from sensorimotor import experiments as ex
 from sensorimotor.errors import InputError
 from sensorimotor.experiments import rl as rl_stage
 from sensorimotor.jobs.workers import run_jobs
-from sensorimotor.report.document import to_markdown
+from sensorimotor.report.blocks import to_markdown
 from sensorimotor.rl.results import summary, verdicts
 
 RUNS = Path(__file__).parents[2] / "docs" / "results" / "runs"  # the shipped Rooms1 encoders

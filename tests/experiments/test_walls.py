@@ -14,7 +14,7 @@ from sensorimotor import experiments as ex
 from sensorimotor.errors import InputError
 from sensorimotor.experiments import walls
 from sensorimotor.jobs.workers import run_jobs
-from sensorimotor.report.document import to_markdown
+from sensorimotor.report.blocks import to_markdown
 from sensorimotor.sim.world import load_world, point_segment_distance
 
 

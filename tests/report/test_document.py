@@ -11,16 +11,8 @@ import pytest
 from sensorimotor.analysis import analyze_representation
 from sensorimotor.analysis.claims import cluster_f1, paper_claims
 from sensorimotor.analysis.clusters import cluster_event_table
-from sensorimotor.report.document import (
-    _claims,
-    h,
-    image,
-    p,
-    paper_agreement,
-    table,
-    to_html,
-    to_markdown,
-)
+from sensorimotor.report.blocks import h, image, p, table, to_html, to_markdown
+from sensorimotor.report.document import _claims, paper_agreement
 from sensorimotor.sim.database import generate
 from sensorimotor.sim.world import load_world
 from sensorimotor.stats import BEFORE, CHOSEN
@@ -241,7 +233,7 @@ def test_the_html_links_its_sections_colours_verdicts_folds_grids_and_shrinks_im
     from matplotlib.figure import Figure
     from PIL import Image
 
-    from sensorimotor.report.document import MAX_IMAGE_WIDTH, anchor, contents, embedded_png
+    from sensorimotor.report.blocks import MAX_IMAGE_WIDTH, anchor, contents, embedded_png
 
     big = tmp_path / "big.png"
     fig = Figure(figsize=(30, 3), dpi=100)  # 3000 px wide

@@ -29,7 +29,7 @@ from sensorimotor.analysis.map import mapping
 from sensorimotor.experiments import map as map_stage
 from sensorimotor.files import file_hash, write_text_atomic
 from sensorimotor.jobs.workers import run_jobs
-from sensorimotor.report.document import to_markdown
+from sensorimotor.report.blocks import to_markdown
 
 RUNS = Path(__file__).resolve().parents[1] / "runs"
 

@@ -36,7 +36,7 @@ from sensorimotor.files import file_hash, read_json, write_json_atomic
 from sensorimotor.jobs.cache import read_key, stage_key
 from sensorimotor.jobs.workers import Job
 from sensorimotor.learn.models import KINDS
-from sensorimotor.report.document import h, image, p, table
+from sensorimotor.report.blocks import h, image, p, table
 from sensorimotor.stats import (
     BEFORE,
     Verdict,
@@ -69,6 +69,7 @@ METRICS = (
     ("broom.map", "localisation.balanced_room_accuracy.map", "balanced room acc.: map", ".3f"),
     ("broom.cells", "localisation.balanced_room_accuracy.cells", "balanced: cells", ".3f"),
     ("broom.chance", "localisation.balanced_room_accuracy.chance", "balanced: chance", ".3f"),
+    ("broom.readout", "baselines.localisation.history_readout", "balanced: read-out", ".3f"),
     ("pos.map", "localisation.position_error.map", "position error: map", ".2f"),
     ("pos.cells", "localisation.position_error.cells", "position error: cells", ".2f"),
     ("pos.chance", "localisation.position_error.chance", "position error: chance", ".2f"),

@@ -24,7 +24,7 @@ from sensorimotor.errors import InputError
 from sensorimotor.files import file_hash
 from sensorimotor.jobs.cache import stage_key
 from sensorimotor.learn.runs import count
-from sensorimotor.report.document import Block, h, image, p, table
+from sensorimotor.report.blocks import Block, h, image, p, table
 from sensorimotor.rl.results import (
     CLAIM,
     HEADLINE,

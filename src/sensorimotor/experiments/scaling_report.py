@@ -15,7 +15,7 @@ from sensorimotor.analysis.analyze import short_name, with_raw
 from sensorimotor.analysis.tables import paper_ordering_holds
 from sensorimotor.learn.models import KINDS, REC_SM, SM, S
 from sensorimotor.learn.runs import count
-from sensorimotor.report.document import Block, h, image, p, table
+from sensorimotor.report.blocks import Block, h, image, p, table
 from sensorimotor.stats import BEFORE, Verdict, is_missing, word
 
 GAP = 0.1  # the corner and memory thresholds of analysis.claims

@@ -30,7 +30,7 @@ from sensorimotor.jobs.cache import read_key, stage_key
 from sensorimotor.jobs.workers import Job
 from sensorimotor.learn.evaluate import evaluate_run, load_run
 from sensorimotor.learn.models import KINDS
-from sensorimotor.report.document import Block, h, p, table
+from sensorimotor.report.blocks import Block, h, p, table
 from sensorimotor.sim.database import generate
 from sensorimotor.sim.floorplan import free_regions
 from sensorimotor.sim.world import World, load_world, point_segment_distance, world_from_dict

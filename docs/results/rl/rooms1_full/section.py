@@ -6,7 +6,7 @@ from pathlib import Path
 from types import SimpleNamespace
 
 from sensorimotor.experiments import rl as rl_stage
-from sensorimotor.report.document import to_markdown
+from sensorimotor.report.blocks import to_markdown
 
 out = Path(sys.argv[1])
 tasks, steps = {}, {}

@@ -38,6 +38,7 @@ import numpy as np
 
 from sensorimotor.analysis.analyze import RAW, load_inputs, representation_of
 from sensorimotor.analysis.clusters import N_CLUSTERS, assign_clusters, fit_kmeans
+from sensorimotor.analysis.map.baselines import balanced_accuracy, higher_orders, history_readout
 from sensorimotor.analysis.map.cells import (
     ACTION_NAMES,
     N_ACTIONS,
@@ -46,7 +47,6 @@ from sensorimotor.analysis.map.cells import (
     action_bins,
     baseline_bits,
     cell_graph,
-    ngram_bits,
 )
 from sensorimotor.analysis.map.chmm import (
     EM_ITERS,
@@ -195,13 +195,6 @@ def _accuracy(model, train: Steps, test: Steps, w_train, w_test, train_labels, t
     guesses = {"map": by_map, "cells": by_cell, "chance": np.full(len(truth), chance)}
     plain = {name: float((g == truth).mean()) for name, g in guesses.items()}
     return plain, {name: balanced_accuracy(truth, g) for name, g in guesses.items()}
-
-
-def balanced_accuracy(truth: np.ndarray, guess: np.ndarray) -> float:
-    """The mean over the labels present in ``truth`` of the fraction of their steps guessed
-    right: a constant guess scores 1 / (labels present), whatever the labels' frequencies."""
-    labels = np.unique(truth)
-    return float(np.mean([(guess[truth == c] == c).mean() for c in labels]))
 
 
 def _mean_positions(weights: np.ndarray, cells: np.ndarray, xy: np.ndarray, S: int) -> tuple:
@@ -465,7 +458,10 @@ def map_files(
         },
         "versions": _versions(),
         "bits_per_step": bits,
-        "baselines": {"bits_per_step": higher_orders(train, test, clusters)},
+        "baselines": {
+            "bits_per_step": higher_orders(train, test, clusters),
+            "localisation": {"history_readout": history_readout(train, test, world, clusters)},
+        },
         "states": {
             "total": model.n_states,
             "active": int(model.active.sum()),
@@ -524,18 +520,6 @@ def _fmt(v, spec: str = ".3f") -> str:
     return "n/a" if v is None else format(v, spec)
 
 
-BASELINE_ORDERS = (2, 3)  # the (cell, action) models beside the first-order Markov model
-
-
-def higher_orders(train, test, clusters: int) -> dict[str, float]:
-    """Bits per step on the test split of the 2nd- and 3rd-order (cell, action) models with
-    back-off (``cells.ngram_bits``): the baselines a map must beat beyond first-order Markov."""
-    return {
-        f"markov{n}": ngram_bits(train.cells, train.actions, test.cells, test.actions, clusters, n)
-        for n in BASELINE_ORDERS
-    }
-
-
 def summary_lines(m: dict) -> list[str]:
     """The main numbers of a ``map.json`` as printable lines."""
     b, loc, r = m["bits_per_step"], m["localisation"], m["rooms"]
@@ -559,11 +543,16 @@ def summary_lines(m: dict) -> list[str]:
 
 
 def _baseline_lines(m: dict) -> list[str]:
-    """The higher-order baselines' bits per step (none in a map.json made before them)."""
-    higher = m.get("baselines", {}).get("bits_per_step", {})
-    if not higher:
+    """The baselines' numbers (none in a map.json made before them)."""
+    base = m.get("baselines", {})
+    if not base:
         return []
-    return ["  baselines, bits/step: " + ", ".join(f"{k} {_fmt(v)}" for k, v in higher.items())]
+    higher = ", ".join(f"{k} {_fmt(v)}" for k, v in base["bits_per_step"].items())
+    readout = base["localisation"]["history_readout"]
+    return [
+        f"  baselines: bits/step {higher}; balanced room accuracy of the history read-out "
+        f"{_fmt(readout)}"
+    ]
 
 
 def _planning_warning(planning: dict) -> list[str]:
