@@ -442,3 +442,15 @@ def test_the_analysis_refuses_readings_that_are_not_the_layouts(square_test):
         an.analyze_representation(z, part.sensors[:, :4], part.poses, world)
     with pytest.raises(ValueError, match="poses \\(N, 3\\)"):
         an.analyze_representation(z, part.sensors, part.poses[:, :2], world)
+
+
+def test_the_corner_probe_reads_a_linear_code_and_ignores_noise():
+    from sensorimotor.analysis.probes import probe_auc
+
+    rng = np.random.default_rng(0)
+    event = rng.random(4000) < 0.05
+    coded = np.c_[event + 0.3 * rng.standard_normal(4000), rng.standard_normal((4000, 3))]
+    noise = rng.standard_normal((4000, 4))
+    assert probe_auc(coded, event) > 0.95
+    assert abs(probe_auc(noise, event) - 0.5) < 0.1
+    assert probe_auc(noise, np.zeros(4000, dtype=bool)) is None  # one class: no AUC

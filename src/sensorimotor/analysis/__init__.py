@@ -50,7 +50,8 @@ from sensorimotor.analysis.representation import (
 # Raised whenever a metric's definition changes, so that ``reproduce`` redoes kept analyses.
 # 2: KNN-MSE averages ties between identical representations (was: broken by search order).
 # 3: corners and wall ends in view by the database's own lasers (was: always the paper's).
-METRICS_VERSION = 3
+# 4: each event's linear-probe AUC beside its best cluster (events.NAME.probe_auc).
+METRICS_VERSION = 4
 
 __all__ = [
     "KMEANS_N_INIT",

@@ -256,6 +256,7 @@ def summary_lines(metrics: dict) -> list[str]:
         lines.append(
             f"  {name.replace('_', ' ') + ' in view':<18} {e['rate']:6.1%} of steps; {best}"
             f"precision {e['precision']:.2f}, recall {e['recall']:.2f}, F1 {e['f1']:.2f}"
+            + ("" if e.get("probe_auc") is None else f"; linear probe AUC {e['probe_auc']:.2f}")
         )
     mem = m["memory"]
     r2 = mem["distance_behind_r2"]

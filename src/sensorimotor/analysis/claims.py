@@ -65,6 +65,7 @@ def claim_numbers(analyses: dict[str, dict], runs: list[tuple[str, str, int]], w
                 k: []
                 for k in (
                     "corner_f1",
+                    "corner_auc",
                     "wall_end_f1",
                     "nothing_clusters",
                     "behind_r2",
@@ -79,6 +80,7 @@ def claim_numbers(analyses: dict[str, dict], runs: list[tuple[str, str, int]], w
                 a = analyses[key]["analysis"]
                 ev = a["events"]
                 vals["corner_f1"].append(ev.get("corner", {}).get("f1"))
+                vals["corner_auc"].append(ev.get("corner", {}).get("probe_auc"))
                 vals["wall_end_f1"].append(ev.get("wall_end", {}).get("f1"))
                 vals["nothing_clusters"].append(a["memory"]["nothing_clusters"])
                 vals["behind_r2"].append(a["memory"]["distance_behind_r2"])

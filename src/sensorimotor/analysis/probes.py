@@ -48,6 +48,29 @@ def probe_r2(z: np.ndarray, target: np.ndarray, seed: int = 0, alpha: float = RI
     return float(r2_score(target[score], probe.predict(z[score])))
 
 
+def probe_auc(z: np.ndarray, event: np.ndarray, seed: int = 0) -> float | None:
+    """ROC AUC on a held-out half of a linear (logistic, class-balanced) probe from ``z`` to a
+    boolean ``event`` (a corner in view): unlike the best single cluster's F1, it does not
+    depend on k-means giving the event a cluster of its own. 0.5 is chance, 1 a linear
+    separation. The halves are ``probe_r2``'s; None (JSON null) where either half lacks a class.
+    """
+    from sklearn.linear_model import LogisticRegression
+    from sklearn.metrics import roc_auc_score
+
+    z = check_z(z)
+    event = np.asarray(event, dtype=bool)
+    if len(event) != len(z):
+        raise ValueError(f"event has {len(event)} rows, representation {len(z)}")
+    if len(z) < 4:
+        return None
+    fit, score = _halves(len(z), seed)
+    if len(np.unique(event[fit])) < 2 or len(np.unique(event[score])) < 2:
+        return None
+    probe = make_pipeline(StandardScaler(), LogisticRegression(class_weight="balanced"))
+    probe.fit(z[fit], event[fit])
+    return float(roc_auc_score(event[score], probe.decision_function(z[score])))
+
+
 def _subsample(n: int, m: int, seed: int) -> np.ndarray:
     """Sorted indices of a fixed random subset of ``min(n, m)`` of ``range(n)``."""
     if n <= m:

@@ -18,7 +18,7 @@ from sensorimotor.analysis.clusters import (
     fit_pca,
     project_2d,
 )
-from sensorimotor.analysis.probes import memory_scores, position_scores
+from sensorimotor.analysis.probes import memory_scores, position_scores, probe_auc
 from sensorimotor.sim import events as ev
 from sensorimotor.sim.core import DEFAULT_LAYOUT, SensorLayout
 from sensorimotor.sim.world import World
@@ -106,7 +106,8 @@ def analyze_representation(
 
     - ``n_steps``, ``dim``, ``seed``, ``k``, ``transfer``, ``world``, ``pca_explained_variance``;
     - ``events``: per event (corner, wall_end where the world has free ends, nothing) the best
-      cluster's ``precision``, ``recall``, ``f1``, ``cluster`` and the event's ``rate``, ``count``;
+      cluster's ``precision``, ``recall``, ``f1``, ``cluster``, the event's ``rate``, ``count``,
+      and ``probe_auc`` (a linear probe's, ``probes.probe_auc``);
     - ``memory``: ``memory_scores``; ``position``: ``position_scores``;
     - ``clusters``: per cluster ``id``, ``size``, ``share``, ``precision`` and ``lift``
       (precision / rate) per event, and ``strongest_event``: the event of highest lift among those
@@ -165,7 +166,10 @@ def analyze_representation(
         "k": k,
         "transfer": transfer,
         "pca_explained_variance": [float(v) for v in pca.explained_variance_ratio_],
-        "events": {name: event_scores(labels, e, k) for name, e in events.items()},
+        "events": {
+            name: {**event_scores(labels, e, k), "probe_auc": probe_auc(z, e, seed)}
+            for name, e in events.items()
+        },
         "memory": memory_scores(z, labels, events["nothing"], behind, seed, k),
         "position": position_scores(z, poses, seed, _region_size(world, poses)),
         "clusters": clusters,

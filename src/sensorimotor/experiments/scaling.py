@@ -422,7 +422,7 @@ def condition_numbers(cond, evals, test_names, seen_names, base, numbers) -> dic
     claims = {
         kind: {
             name: _mean(numbers[kind].get(name, []))
-            for name in ("corner_f1", "nothing_clusters", "behind_r2")
+            for name in ("corner_f1", "corner_auc", "nothing_clusters", "behind_r2")
         }
         for kind in with_raw()
     }

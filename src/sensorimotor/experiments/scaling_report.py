@@ -137,7 +137,7 @@ def condition_table(c: dict) -> Block:
     seen = c.get("errors_on_training_plans")
     header = ["Model", "test error", "per ray", "/ previous reading"]
     header += ["on its training plans"] if seen else []
-    header += ["corner F1", "'nothing' clusters", "distance-behind R²"]
+    header += ["corner F1", "corner AUC (probe)", "'nothing' clusters", "distance-behind R²"]
     rows = []
     for kind in with_raw():
         claims = c["claims"][kind]
@@ -154,6 +154,7 @@ def condition_table(c: dict) -> Block:
             cells += [f"{seen[kind]:.5f}"] if seen else []
         cells += [
             _f(claims["corner_f1"]),
+            _f(claims.get("corner_auc")),
             _f(claims["nothing_clusters"], 1),
             _f(claims["behind_r2"]),
         ]

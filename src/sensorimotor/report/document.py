@@ -301,7 +301,9 @@ def _inside(rep, figs: dict[str, Path], numbers: dict, worlds: list[str]) -> lis
             "z_s of each model on its training world's test split. Events are computed from pose and "
             "walls: a corner or a free wall end inside the sensor fan within range 10 and in line of "
             "sight; nothing in view (all readings 10); the distance to the wall straight behind. "
-            "Event F1: the best single k-means cluster (k = 20) as a detector of the event. Memory: "
+            "Event F1: the best single k-means cluster (k = 20) as a detector of the event; corner "
+            "AUC: a class-balanced logistic probe for a corner in view (fit on one half of the "
+            "steps, ROC AUC on the other; 0.5 is chance). Memory: "
             "clusters that are mostly 'nothing in view', and the R² of a ridge probe for the distance "
             "behind among 'nothing in view' steps (fit on one half, scored on the other). Position: R² "
             "of ridge probes for x, y, cos(heading); KNN-MSE of the normalised position among the 5 "
@@ -316,6 +318,7 @@ def _inside(rep, figs: dict[str, Path], numbers: dict, worlds: list[str]) -> lis
                 [
                     label(kind),
                     fmt_ms(v["corner_f1"]),
+                    fmt_ms(v["corner_auc"]),
                     fmt_ms(v["wall_end_f1"]),
                     fmt_ms(v["nothing_clusters"], 1),
                     fmt_ms(v["behind_r2"]),
@@ -331,6 +334,7 @@ def _inside(rep, figs: dict[str, Path], numbers: dict, worlds: list[str]) -> lis
                 [
                     "representation",
                     "corner F1",
+                    "corner AUC",
                     "wall-end F1",
                     "nothing clusters",
                     "behind R²",
