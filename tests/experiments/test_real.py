@@ -69,6 +69,7 @@ def test_the_real_experiment_runs_the_log_and_a_campus_and_keeps_its_results(
     assert (camp["world"], camp["steps"], camp["test_rows"]) == ("yard", 3000, 300)
     assert camp["size"] == [31.0, 21.0]  # the yard and one cell around
     assert camp["walls"] == 8  # the yard's four sides and the building's
+    assert camp["trapped_from"] is None  # the agent roams the yard to the end
     for m in camp["models"].values():
         assert math.isfinite(m["error"])
         assert math.isfinite(m["on_real"])

@@ -49,6 +49,7 @@ SEED = 0
 CAMPUS_STEPS = {"smoke": 20_000, "quick": 200_000, "paper": 1_000_000}
 """Rows of the campus database by scale (an unknown scale: ``quick``'s)."""
 FIGURE_STEPS = 100_000  # the campus figure's trajectory
+TRAPPED_ROWS = 1_000  # a database ending in this many rows without moving: the agent is trapped
 REAL, CAMPUS = "sena", "campus"
 
 
@@ -244,6 +245,18 @@ def _highlights(out: Path) -> dict:
     }
 
 
+def trapped_from(db) -> int | None:
+    """The row from which the agent never moves again (``d`` 0 to the end), when that is
+    ``TRAPPED_ROWS`` rows or more: the paper's behaviour turns around whenever a reading is
+    under 1 unit, so a pocket of a real map where no heading clears all five rays traps it
+    for good; None when it moves to near the end."""
+    import numpy as np
+
+    moved = np.nonzero(np.asarray(db.motors[:, 0]) > 0)[0]
+    start = int(moved[-1]) + 1 if len(moved) else 0
+    return start if len(db) - start >= TRAPPED_ROWS else None
+
+
 def _one(res: dict, name: str) -> tuple[float | None, dict]:
     """A run's error on the database of world ``name`` and that database's baselines."""
     base = res["baselines"][name]
@@ -297,7 +310,12 @@ def _numbers(d, kinds, sena, world, campus, square, on_real, runs, evals, steps,
             "epochs": trained.get("epochs"),
             "stopped": trained.get("stopped"),
         }
+    trapped = trapped_from(campus_db)
     camp |= {
+        "trapped_from": trapped,
+        "trapped_at": None
+        if trapped is None
+        else [_num(float(v)) for v in campus_db.poses[trapped, :2]],
         "beat_copy_last_on_real": [
             k
             for k, m in camp["models"].items()
@@ -455,6 +473,20 @@ def section(rep, found: dict) -> list[Block]:
             "the campus, on the real recording's."
         )
     )
+    if camp.get("trapped_from") is not None:
+        n, (x, y) = camp["trapped_from"], camp["trapped_at"]
+        test_start = camp["steps"] - camp["test_rows"]
+        in_test = min(1.0, (camp["steps"] - max(n, test_start)) / camp["test_rows"])
+        b.append(
+            p(
+                f"**The simulated agent was trapped**: from step {n:,} on it turns in place at "
+                f"({_f(x, 1)}, {_f(y, 1)}) m, in a pocket of the real map where no heading clears "
+                "all five rays (the paper's behaviour turns around whenever a reading is under 1 "
+                f"unit). {100 * (camp['steps'] - n) / camp['steps']:.0f} % of the database and "
+                f"{100 * in_test:.0f} % of its test split are that trap: the campus numbers below "
+                "are not a fair test of the encoders."
+            )
+        )
     b.append(
         image(
             root / found["figures"]["campus"],
