@@ -1,5 +1,5 @@
-"""Real data in MRPT's formats: a real robot's rawlog and a real campus grid (tests/data/mrpt,
-BSD-3-Clause, see its README.md), read by the reader written here (sim/mrpt.py).
+"""Real data in MRPT's formats: a real robot's rawlog and a real campus grid (shipped in
+src/sensorimotor/sim/data/mrpt, BSD-3-Clause, see its README.md), read by the reader written here (sim/mrpt.py).
 
 The shipped log imports to one row a scan but the last, whose readings are the log's beams
 nearest the paper's rays; a cut, corrupted or hostile log is refused with one line; a simulated
@@ -22,16 +22,16 @@ import pytest
 
 from conftest import assert_one_line_error, run_cli
 from sensorimotor.errors import InputError
+from sensorimotor.sim import mrpt
 from sensorimotor.sim.core import SensorLayout
-from sensorimotor.sim.database import generate, load_database
+from sensorimotor.sim.database import Database, generate, load_database
 from sensorimotor.sim.mrpt import END, gridmap_bytes, head, read_rawlog, scan_bytes
 from sensorimotor.sim.rawlog import import_rawlog, write_rawlog
 from sensorimotor.sim.rosmap import import_mrpt_map
 from sensorimotor.sim.world import load_world
 
-DATA = Path(__file__).parent.parent / "data" / "mrpt"
-LOG = DATA / "sena_telecom_faculty_one_loop.rawlog"
-CAMPUS = DATA / "malaga_campus_2006.gridmap.gz"
+LOG = mrpt.SENA_LOG
+CAMPUS = mrpt.CAMPUS_MAP
 
 
 def wrapped(a) -> np.ndarray:
@@ -142,6 +142,23 @@ def test_a_simulated_run_written_as_a_rawlog_reads_back_the_same(tmp_path):
     assert import_rawlog(log).meta["source"]["rate_hz"] == pytest.approx(10.0)
     three = import_rawlog(log, SensorLayout((-0.6, 0.0, 0.6), 10.0))
     np.testing.assert_array_equal(three.sensors, db.sensors[:-1][:, [0, 2, 4]])
+
+
+def test_with_a_world_the_walls_are_known_and_poses_outside_it_are_refused(real, tmp_path):
+    sim = generate(load_world("square"), 30, seed=1)
+    line = np.zeros((30, 3), dtype=np.float32)
+    line[:, 0] = 0.2 * np.arange(30)  # odometry from (0, 0, 0) along x: inside the square
+    log = write_rawlog(
+        Database(sim.sensors, sim.motors, line, meta=sim.meta), tmp_path / "l.rawlog"
+    )
+    known = import_rawlog(log, world=load_world("square"))
+    assert known.has_walls
+    assert known.world.walls.tolist() == load_world("square").walls.tolist()
+    np.testing.assert_allclose(known.poses[:, 0], line[:-1, 0], atol=1e-4)
+    assert not real.has_walls
+    with pytest.raises(InputError, match="outside the 50 x 50 world 'square'") as err:
+        import_rawlog(LOG, world=load_world("square"))  # the loop goes below y = 0
+    assert "\n" not in str(err.value)
 
 
 def test_a_tiny_grid_gives_the_walls_of_its_blocked_cells(tmp_path):

@@ -152,15 +152,20 @@ def import_rawlog(
     fov: Annotated[float, typer.Option(help="Angle from first to last ray (rad).")] = 1.2,
     range_: Annotated[float, typer.Option("--range", help="Reading of no return (units).")] = 10.0,
     scale: Annotated[float, typer.Option(help="Units a metre (1: a unit is a metre).")] = 1.0,
+    world: Annotated[
+        str | None, typer.Option(help="World of the poses' frame (odometry from (0, 0, 0)).")
+    ] = None,
 ) -> None:
     """Make a database of a real robot's MRPT rawlog: laser scans, odometry (see sim/rawlog.py)."""
     from sensorimotor.files import check_writable
     from sensorimotor.sim import rawlog, rosbag
     from sensorimotor.sim.database import save_database
+    from sensorimotor.sim.world import load_world
 
     layout = rosbag.ray_layout(rays, fov, range_)
+    w = load_world(world) if world is not None else None
     check_writable(out)
-    db = rawlog.import_rawlog(log, layout, scale, sensor)
+    db = rawlog.import_rawlog(log, layout, scale, sensor, w)
     save_database(db, out)
     err_console.print(f"wrote {out}: {rawlog.summary(db)}")
 

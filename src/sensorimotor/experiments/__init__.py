@@ -54,6 +54,9 @@ EXPERIMENTS: dict[str, Experiment] = {
             "sensorimotor.experiments.walls",
             "Table I over wall layouts that fit the paper's sentences",
         ),
+        Experiment(
+            "real", "sensorimotor.experiments.real", "a real robot's laser log and a real campus"
+        ),
     )
 }
 """Every experiment by name, in the order they run."""

@@ -192,4 +192,76 @@ def perception_figure(
     return fig
 
 
-# --------------------------------------------------------------------------------- saving
+# ---------------------------------------------------------------- real data (reproduce real)
+
+
+def real_path_figure(log, db: Database, every: int = 5, within: float = 20.0) -> Figure:
+    """A real robot's recording (an MRPT rawlog and its imported database): left, the end
+    points of the valid beams under ``within`` m of every ``every``-th scan, drawn from the
+    odometry pose, over the laser's path; right, the layout's readings along the rows."""
+    from sensorimotor.sim.mrpt import Odometry, Scan, compose, inverse_compose, read_rawlog
+
+    entries, _ = read_rawlog(log)
+    odo, first, points, scans = (0.0, 0.0, 0.0), None, [], 0
+    for entry in entries:
+        for item in entry if isinstance(entry, list) else [entry]:
+            if isinstance(item, Scan):
+                scans += 1
+                x, y, yaw = compose(odo, item.sensor)
+                n = len(item.ranges)
+                a = -item.aperture / 2 + np.arange(n) * item.aperture / max(n - 1, 1)
+                if not item.right_to_left:
+                    a = -a
+                ok = item.valid & (item.ranges < within) & (item.ranges > 0)
+                r = item.ranges[ok]
+                points.append(
+                    np.stack([x + r * np.cos(yaw + a[ok]), y + r * np.sin(yaw + a[ok])], 1)
+                )
+            elif isinstance(item, Odometry) and item.absolute:  # import_rawlog's rule
+                first = item.pose if first is None else first
+                odo = inverse_compose(item.pose, first)
+            elif isinstance(item, Odometry):
+                odo = compose(odo, item.pose)
+    pts = np.concatenate(points[::every]) if points else np.zeros((0, 2))
+    fig = Figure(figsize=(13, 5.5), layout="constrained")
+    ax, bx = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1, 1.3]})
+    ax.scatter(pts[:, 0], pts[:, 1], s=0.3, c="0.55", lw=0,
+               label=f"laser end points (every {every}th scan)")  # fmt: skip
+    ax.plot(db.poses[:, 0], db.poses[:, 1], "C0-", lw=1.5, label="odometry path (laser)")
+    ax.plot(*db.poses[0, :2], "go", label="start")
+    ax.plot(*db.poses[-1, :2], "rs", label="end")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m, odometry frame)")
+    ax.set_ylabel("y (m)")
+    ax.set_title(f"{db.meta['world']['name']}: {scans:,} scans")
+    ax.legend(loc="upper left", fontsize=7)
+    im = bx.imshow(db.sensors.T, aspect="auto", cmap="viridis", interpolation="nearest")
+    angles = db.layout.angles
+    bx.set_yticks(range(len(angles)), [f"{a:g}" for a in angles])
+    bx.set_ylabel("ray (rad)")
+    rate = db.meta.get("source", {}).get("rate_hz")
+    bx.set_xlabel(f"row ({rate:.2g} Hz)" if rate else "row")
+    bx.set_title(f"the {len(angles)} kept rays' readings (capped at {db.max_range:g})")
+    fig.colorbar(im, ax=bx, fraction=0.04)
+    return fig
+
+
+def campus_figure(world: World, db: Database, steps: int = 100_000) -> Figure:
+    """A large world's walls (thin lines) with the first ``steps`` poses of ``db`` in it."""
+    from matplotlib.collections import LineCollection
+
+    steps = min(steps, len(db))
+    aspect = world.height / world.width
+    fig = Figure(figsize=(7, max(3.0, 7 * aspect)), layout="constrained")
+    ax = fig.subplots()
+    w = np.asarray(world.walls)
+    ax.add_collection(LineCollection(w.reshape(-1, 2, 2), colors="k", linewidths=0.4))
+    ax.plot(db.poses[:steps, 0], db.poses[:steps, 1], "C0-", lw=0.15, alpha=0.7)
+    ax.set_xlim(0, world.width)
+    ax.set_ylim(0, world.height)
+    ax.set_aspect("equal")
+    seed = db.meta.get("seed")
+    ax.set_title(f"{world.name}: {len(w):,} walls, {steps:,} simulated steps (seed {seed})")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    return fig

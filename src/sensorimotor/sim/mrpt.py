@@ -36,6 +36,12 @@ import numpy as np
 from sensorimotor.errors import InputError
 from sensorimotor.files import check_input
 
+SHIPPED = Path(__file__).parent / "data" / "mrpt"
+"""Two real datasets shipped with the package (BSD-3-Clause, MRPT; provenance and notice in its
+``README.md``): a real robot's rawlog and a real campus's occupancy grid."""
+SENA_LOG = SHIPPED / "sena_telecom_faculty_one_loop.rawlog"
+CAMPUS_MAP = SHIPPED / "malaga_campus_2006.gridmap.gz"
+
 MAX_FILE_BYTES = 1 << 30  # a rawlog or gridmap as stored (gzip or plain)
 MAX_DATA_BYTES = 2 << 30  # once decompressed: a gzip bomb stops here
 MAX_BEAMS = 100_000  # beams of one scan (a 2-D laser has a few thousand at most)

@@ -21,7 +21,9 @@ How the rows are made (``import_rawlog``):
 
 The default ``scale`` is 1: a unit is a metre, the paper's range of 10 units is 10 m (a corridor
 or a room is then the size of the paper's 50 x 50 worlds' features), and readings beyond 10 m
-read 10. The world is unknown (``meta.world`` a name alone).
+read 10. The world is unknown (``meta.world`` a name alone) unless one is given (``world``,
+``--world``): the poses, from odometry from (0, 0, 0) and times the scale, must then lie in its
+frame, inside it.
 """
 
 from __future__ import annotations
@@ -49,7 +51,8 @@ from sensorimotor.sim.mrpt import (
     scan_bytes,
     wrap,
 )
-from sensorimotor.sim.world import BUILTIN_WORLDS
+from sensorimotor.sim.rosbag import check_inside
+from sensorimotor.sim.world import BUILTIN_WORLDS, World
 from sensorimotor.version import __version__
 
 
@@ -71,8 +74,10 @@ def import_rawlog(
     layout: SensorLayout = DEFAULT_LAYOUT,
     scale: float = 1.0,
     sensor: str | None = None,
+    world: World | None = None,
 ) -> Database:
-    """Read an MRPT rawlog into a Database (see the module docstring for every rule)."""
+    """Read an MRPT rawlog into a Database (see the module docstring for every rule); with
+    ``world``, the walls are known: the poses (times ``scale``) must lie inside it."""
     log = Path(log)
     if not (math.isfinite(scale) and 0 < scale <= 1e6):
         raise InputError(f"--scale must be a positive number (units a metre), got {scale}")
@@ -172,10 +177,12 @@ def import_rawlog(
     dt = np.diff(stamps) / 1e7
     good = dt[(dt > 0) & np.isfinite(dt)]
     rate = float(1.0 / np.median(good)) if len(good) and (stamps > 0).all() else None
+    if world is not None:
+        check_inside(log, world, arrays[2])
     first = kept[0][0]
     meta = {
         "format": "sensorimotor-database/1",
-        "world": {"name": rawlog_name(log)},
+        "world": world.to_dict() if world is not None else {"name": rawlog_name(log)},
         "seed": None,
         "steps": n,
         "sensor_layout": layout.to_dict(),

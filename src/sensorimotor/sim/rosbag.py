@@ -430,7 +430,7 @@ def import_bag(
     if not all(np.isfinite(a).all() for a in arrays):
         raise InputError(f"{bag}: odometry or commands hold NaN or inf")
     if world is not None:
-        _check_inside(bag, world, out_pose)
+        check_inside(bag, world, out_pose)
     counts["rows"] = len(rows)
     meta = {
         "format": "sensorimotor-database/1",
@@ -484,7 +484,7 @@ def _wrap(a: np.ndarray) -> np.ndarray:
     return np.where(out == -np.pi, np.pi, out)
 
 
-def _check_inside(bag: Path, world: World, poses: np.ndarray) -> None:
+def check_inside(bag: Path, world: World, poses: np.ndarray) -> None:
     outside = (
         (poses[:, 0] < 0)
         | (poses[:, 1] < 0)
