@@ -58,7 +58,8 @@ def reproduce(
             help="Experiments past the paper to run after its stages, comma-separated, each "
             "with its own report section: map (a map learned from the cells), scaling (more "
             "rays, noise, unseen floor plans), rl (PPO agents on the Rooms1 encoders), walls "
-            "(Table I over wall layouts that fit the paper's sentences). Default: none."
+            "(Table I over wall layouts that fit the paper's sentences), real (a real robot's "
+            "log and a real campus map). Default: none."
         ),
     ] = None,
 ) -> None:
