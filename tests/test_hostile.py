@@ -597,3 +597,182 @@ def test_help_states_every_bound(capsys):
     assert "0<=x<=200" in out
     assert run(["sweep", "--help"]) == 0
     assert "[train], [space], [asha]" in capsys.readouterr().out
+
+
+# the second pass's families, each by its case ----------------------------------------------------
+
+
+def test_a_ros2_bag_folder_whose_files_are_not_regular_is_refused_before_it_is_opened(
+    tmp_path, capsys
+):
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    os.mkfifo(bag / "bag_0.db3")
+    out = tmp_path / "db.npz"
+    rc, err, _ = _in_process(["import-bag", bag, "--out", out], capsys)
+    _assert_one_line(rc, err, "bag_0.db3", "a FIFO, not a file of a ROS 2 bag")
+    (bag / "bag_0.db3").unlink()
+    (bag / "bag_0.db3").symlink_to("/dev/zero")
+    rc, err, _ = _in_process(["import-bag", bag, "--out", out], capsys)
+    _assert_one_line(rc, err, "bag_0.db3", "a device")
+    assert not out.exists()
+
+
+def _map_yaml(tmp_path, image: str, origin: str = "[0.0, 0.0, 0.0]"):
+    yaml = tmp_path / "map.yaml"
+    yaml.write_text(f"image: {image}\nresolution: 0.05\norigin: {origin}\n")
+    return yaml
+
+
+@pytest.mark.parametrize("image", ["fifo", "dev_zero", "folder", "huge_png", "huge_pgm"])
+def test_the_image_a_map_names_goes_through_the_door_and_its_pixels_are_bounded(
+    image, tmp_path, capsys
+):
+    import struct
+    import zlib
+
+    path = tmp_path / "map.png"
+    if image == "fifo":
+        os.mkfifo(path)
+    elif image == "dev_zero":
+        path.symlink_to("/dev/zero")
+    elif image == "folder":
+        path.mkdir()
+    elif image == "huge_png":  # 20,000 x 20,000 announced: refused from the header, not decoded
+        ihdr = struct.pack(">IIBBBBB", 20_000, 20_000, 8, 0, 0, 0, 0)
+        chunk = b"IHDR" + ihdr
+        path.write_bytes(
+            b"\x89PNG\r\n\x1a\n"
+            + struct.pack(">I", len(ihdr))
+            + chunk
+            + struct.pack(">I", zlib.crc32(chunk))
+        )
+    else:
+        path = tmp_path / "map.pgm"
+        path.write_bytes(b"P5 20000 20000 255\n" + bytes(100))
+    out = tmp_path / "w.toml"
+    rc, err, seconds = _in_process(
+        ["world", "import", _map_yaml(tmp_path, path.name), "--out", out], capsys
+    )
+    _assert_one_line(rc, err, str(path))
+    if image.startswith("huge"):
+        assert "pixels" in err
+    assert seconds < 5
+    assert not out.exists()
+
+
+def test_a_map_origin_nested_deep_is_one_line(tmp_path, capsys):
+    yaml = _map_yaml(tmp_path, "map.pgm", "[" * 5000 + "]" * 5000)
+    rc, err, _ = _in_process(["world", "import", yaml, "--out", tmp_path / "w.toml"], capsys)
+    _assert_one_line(rc, err, "map.yaml:3", "a list within a list")
+
+
+@pytest.mark.parametrize("kind", ["grid", "random"])
+def test_a_sweep_of_a_billion_trials_is_refused_before_its_grid_is_built(
+    kind, tmp_path, capsys, square_db_path
+):
+    spec = tmp_path / "sweep.toml"
+    if kind == "grid":  # 1,000^3 combinations
+        values = ", ".join(str(2**i) for i in range(1_000))
+        body = f"[space]\nbatch_size = [{values}]\nhorizon = [{values}]\npatience = [{values}]\n"
+    else:
+        body = 'search = "random"\ntrials = 1000000000\n[space]\nlr = [0.1, 0.2]\n'
+    spec.write_text(f'data = "{square_db_path}"\n{body}')
+    rc, err, seconds = _in_process(["sweep", spec, "--out", tmp_path / "s"], capsys)
+    _assert_one_line(rc, err, str(spec), "1,000")
+    assert seconds < 5
+    assert not (tmp_path / "s").exists()
+
+
+def test_a_sweep_whose_data_is_a_fifo_is_refused_through_the_door(tmp_path, capsys):
+    fifo = tmp_path / "data.npz"
+    os.mkfifo(fifo)
+    spec = tmp_path / "sweep.toml"
+    spec.write_text(f'data = "{fifo}"\n[space]\nlr = [0.1, 0.2]\n')
+    rc, err, _ = _in_process(["sweep", spec, "--out", tmp_path / "s"], capsys)
+    _assert_one_line(rc, err, str(fifo), "a FIFO, not a database")
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["world", "random", "--name", "square"],
+        ["world", "random", "--name", "Rooms2"],
+        ["world", "import", "map.yaml", "--name", "rooms1"],
+    ],
+)
+def test_a_built_in_worlds_name_is_refused_up_front(args, tmp_path, capsys):
+    out = tmp_path / "w.toml"
+    rc, err, _ = _in_process([*args, "--out", out], capsys)
+    _assert_one_line(rc, err, "the name of a built-in world")
+    assert not out.exists()
+
+
+def test_an_rl_out_that_is_a_file_or_a_read_only_folder_is_one_line(tmp_path, capsys):
+    pytest.importorskip("stable_baselines3")
+    taken = tmp_path / "taken"
+    taken.write_text("mine")
+    args = ["rl", "corner", "--features", "pose", "--seeds", "1", "--steps", "64"]
+    rc, err, _ = _in_process([*args, "--out", taken], capsys)
+    _assert_one_line(rc, err, str(taken), "not a folder")
+    assert taken.read_text() == "mine"
+    if os.geteuid() != 0:  # root writes anywhere
+        locked = tmp_path / "ro"
+        locked.mkdir(mode=0o500)
+        rc, err, _ = _in_process([*args, "--out", locked], capsys)
+        _assert_one_line(rc, err, str(locked))
+
+
+def test_angles_far_out_wrap_at_once_and_near_ones_keep_their_bits():
+    import math
+
+    from sensorimotor.sim.core import wrap_angle
+
+    for a in (1e300, -1e300, 1e18, 123456.789):
+        assert -math.pi < wrap_angle(a) <= math.pi
+    assert math.isnan(wrap_angle(math.inf))
+    for a in (3.5, -3.5, 7.0, -7.0, 9.42, math.pi, -math.pi):
+        want = a
+        while want > math.pi:
+            want -= 2 * math.pi
+        while want <= -math.pi:
+            want += 2 * math.pi
+        assert wrap_angle(a) == want  # the same bits as the loop it replaces
+
+
+def test_a_simulated_database_whose_motors_do_not_move_it_is_refused(tmp_path, capsys):
+    db = generate(load_world("square"), 2_000, seed=0)
+    motors = db.motors.copy()
+    motors[:, 0] = -5.0  # every forward command -5: the poses moved forward
+    save_database(Database(db.sensors, motors, db.poses, db.meta), tmp_path / "lie.npz")
+    rc, err, _ = _in_process(
+        ["analyze", "raw", "--data", tmp_path / "lie.npz", "--out", tmp_path / "a"], capsys
+    )
+    _assert_one_line(rc, err, "lie.npz", "its motors do not move it")
+    save_database(db, tmp_path / "true.npz")
+    assert len(load_database(tmp_path / "true.npz")) == 2_000
+
+
+def test_a_recording_of_impossible_odometry_and_commands_drops_and_counts_them(tmp_path):
+    pytest.importorskip("rosbags")
+    import math
+
+    from sensorimotor.sim.bagcodec import unit_yaw, write_bag
+    from sensorimotor.sim.rosbag import BagTopics, import_bag
+
+    assert math.isnan(unit_yaw(0.0, 0.0, 0.0, 0.0))  # (0, 0, 0, 0): no heading
+    db = generate(load_world("square"), 600, seed=1)
+    poses, motors = db.poses.astype(np.float64), db.motors.astype(np.float64)
+    poses[100, 2] = np.nan  # a quaternion of NaN: not of unit norm
+    poses[200, 0] = 1e300  # finite in float64, infinite in float32
+    poses[300, 0] += 1e6  # a jump there and back in a tenth of a second
+    motors[400, 0] = 1e30  # /cmd_vel of 1e30 m/s
+    bag = write_bag(Database(db.sensors, motors, poses, db.meta), tmp_path / "bad", cmd=True)
+    got = import_bag(bag, BagTopics(cmd="/cmd_vel"))
+    c = got.meta["source"]["counts"]
+    assert (c["odom_bad_quaternion"], c["odom_not_finite"], c["odom_jumps"]) == (1, 1, 1)
+    assert c["rows_too_fast"] == 1
+    assert np.isfinite(got.poses).all()
+    assert np.abs(got.motors[:, 0]).max() <= 1.0 + 1e-6
+    assert np.abs(got.poses[:, :2]).max() <= 50

@@ -147,7 +147,7 @@ def wrap_angle(a):
     """The same angle in (-pi, pi]: a turn or two subtracted as always (the same bits), an
     angle further out (a huge motor noise) reduced at once, never by a loop of turns."""
     if not -3.0 * math.pi < a <= 3.0 * math.pi:
-        a = a - 2.0 * math.pi * math.floor((a + math.pi) / (2.0 * math.pi))  # inf, nan: nan
+        a = a % (2.0 * math.pi)  # exact, in [0, 2 pi); inf and nan give nan
     while a > math.pi:
         a -= 2.0 * math.pi
     while a <= -math.pi:
