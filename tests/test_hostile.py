@@ -776,3 +776,19 @@ def test_a_recording_of_impossible_odometry_and_commands_drops_and_counts_them(t
     assert np.isfinite(got.poses).all()
     assert np.abs(got.motors[:, 0]).max() <= 1.0 + 1e-6
     assert np.abs(got.poses[:, :2]).max() <= 50
+
+
+def test_the_records_a_stage_reads_back_go_through_the_door(tmp_path):
+    """A cache's key, a trial's result: none or unparsable is made again; a FIFO in its place
+    is refused, never read (it would block for ever)."""
+    from sensorimotor.files import read_json_if_any
+    from sensorimotor.jobs.cache import read_key
+
+    assert read_json_if_any(tmp_path / "none.json", "stage record") is None
+    (tmp_path / "bad.json").write_text("{" * 10)
+    assert read_key(tmp_path / "bad.json") is None
+    (tmp_path / "ok.json").write_text('{"key": "abc"}')
+    assert read_key(tmp_path / "ok.json") == "abc"
+    os.mkfifo(tmp_path / "fifo.json")
+    with pytest.raises(InputError, match="a FIFO, not a stage record"):
+        read_key(tmp_path / "fifo.json")

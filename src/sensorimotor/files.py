@@ -242,6 +242,25 @@ def read_json(path: str | Path, what: str):
     return obj
 
 
+def read_json_if_any(path: str | Path, what: str):
+    """A JSON file this package may have written earlier (a cache's key, a trial's result):
+    None where there is none, or where it does not parse (it is made again); one that is not
+    a regular file (a FIFO, a folder) or is too large is refused as any input is."""
+    path = Path(path)
+    try:
+        mode = path.stat().st_mode
+    except OSError:
+        return None
+    if not stat.S_ISREG(mode) or path.stat().st_size > MAX_TEXT_BYTES:
+        check_input(path, what, MAX_TEXT_BYTES)  # raises, naming what it is
+    try:
+        obj = json.loads(path.read_text(encoding="utf-8"))
+        check_nesting(obj, str(path))
+    except (RecursionError, InputError, OSError, UnicodeDecodeError, ValueError):
+        return None
+    return obj
+
+
 @contextmanager
 def folder_lock(folder: Path, what: str) -> Iterator[None]:
     """Hold an exclusive lock on ``folder`` (its ``.lock`` file) while the block writes it:
@@ -277,7 +296,7 @@ def lock_folder(out: str | Path, what: str = "output folder") -> Iterator[None]:
     if out.is_symlink() and not out.is_dir():
         raise InputError(f"{out}: is a symbolic link, not a folder")
     if out.exists() and not out.is_dir():
-        raise InputError(f"{out}: exists and is not a folder")
+        raise InputError(f"{out}: is a file, not a folder")
     made = not out.exists()
     try:
         out.mkdir(parents=True, exist_ok=True)
