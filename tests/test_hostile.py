@@ -333,3 +333,462 @@ def test_an_agent_result_that_is_not_json_is_one_line_and_kept(tmp_path):
     with pytest.raises(InputError, match="nested too deeply to be a result of an agent"):
         load_agent(path, config)
     assert path.read_text().startswith("[[[")  # what a user trained is never overwritten
+
+
+# every command, by structure: the input door, the folder lock, the bounded options -------------
+# The commands and their parameters are read from the typer app, so a new command inherits these
+# tests: its path options get the hostile files, its output folder the held lock, its numbers
+# the hostile values. Commands run in this process (``cli.run``, what ``main`` runs), each case
+# under an alarm: one line, exit 2, within 10 s.
+
+PATH_STRINGS = ("world", "worlds", "run")  # str parameters that take a path too (a world file)
+
+
+def _commands():
+    """(name words, click command) of every command of the app, sub-apps included."""
+    import typer.main
+
+    from sensorimotor.cli import app
+
+    def walk(cmd, words):
+        if hasattr(cmd, "commands"):
+            for name, sub in sorted(cmd.commands.items()):
+                yield from walk(sub, (*words, name))
+        else:
+            yield words, cmd
+
+    return list(walk(typer.main.get_command(app), ()))
+
+
+def _annotation(param):
+    return param.type_descriptor.annotation
+
+
+def _is_path(param) -> bool:
+    from pathlib import Path
+
+    ann = _annotation(param)
+    return (
+        ann is Path
+        or ann == list[Path]
+        or (ann is str and param.name in PATH_STRINGS)
+        or (ann == list[str] and param.name in PATH_STRINGS)
+    )
+
+
+def _writes(cmd) -> dict:
+    return getattr(cmd.callback, "__writes__", None)
+
+
+def _flag(param) -> str | None:
+    return param.opts[0] if param.param_type_name == "option" else None
+
+
+def _outputs(cmd) -> set[str]:
+    w = _writes(cmd) or {}
+    return {w["folder"]} - {None} | set(w.get("files", ()))
+
+
+def _input_cases():
+    for words, cmd in _commands():
+        for param in cmd.params:
+            if _is_path(param) and param.name not in _outputs(cmd):
+                for kind in ("fifo", "dev_zero_link", "folder", "missing"):
+                    yield pytest.param(
+                        words, param.name, kind, id=f"{'-'.join(words)}-{param.name}-{kind}"
+                    )
+
+
+def _in_process(args, capsys, limit: float = 10.0) -> tuple[int, str, float]:
+    """``sensorimotor ARGS`` run in this process under an alarm: exit status, stderr, seconds."""
+    import signal
+    import time
+
+    from sensorimotor.cli import run
+
+    def too_long(*_):
+        raise TimeoutError(f"sensorimotor {' '.join(map(str, args))} took over {limit:g} s")
+
+    capsys.readouterr()
+    old = signal.signal(signal.SIGALRM, too_long)
+    signal.setitimer(signal.ITIMER_REAL, limit)
+    start = time.perf_counter()
+    try:
+        rc = run([str(a) for a in args])
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+    return rc, capsys.readouterr().err, time.perf_counter() - start
+
+
+def _assert_one_line(rc: int, err: str, *needles: str) -> None:
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert rc == 2, (rc, err)
+    assert len(lines) == 1, err
+    assert "Traceback" not in err
+    for needle in needles:
+        assert needle in lines[0], (needle, lines[0])
+
+
+@pytest.fixture(scope="module")
+def baseline(trained, square_db_path, tmp_path_factory):
+    """A valid value of each required parameter, by name (a new command's new required
+    parameter needs one here), and the outputs in a fresh folder."""
+    # what the commands import, imported once: the 10 s are the command's, not the imports'
+    import sensorimotor.analysis.map.mapping
+    import sensorimotor.learn.train
+    import sensorimotor.pipeline.sweep
+    import sensorimotor.rl.runner
+    import sensorimotor.sim.rosbag  # noqa: F401
+
+    return {
+        "model": "s",
+        "task": "corner",
+        "run": "raw",
+        "world": "square",
+        "worlds": "square",
+        "data": square_db_path,
+        "run_dir": trained,
+        "run_dirs": trained,
+        "bag": tmp_path_factory.mktemp("none") / "no.bag",  # read after --world
+        "spec": tmp_path_factory.mktemp("none") / "no.toml",  # read after the lock
+    }
+
+
+SUFFIX = {"generate": ".npz", "import-bag": ".npz", "random": ".toml", "import": ".toml"}
+
+
+def _argv(words, cmd, values: dict, tmp_path, override: dict) -> list:
+    """The command's arguments: ``override``, else the baseline for each required parameter,
+    outputs in ``tmp_path``."""
+    outputs = _outputs(cmd)
+    w = _writes(cmd) or {}
+    positional, options = [], []
+    for param in cmd.params:
+        if param.name in override:
+            value = override[param.name]
+        elif param.name in outputs:
+            folder = param.name == w.get("folder")
+            value = tmp_path / ("out" if folder else f"out{SUFFIX.get(words[-1], '.png')}")
+            if param.name == "json_out":
+                value = tmp_path / "out.json"
+        elif param.required:
+            assert param.name in values, f"{' '.join(words)}: no baseline for {param.name}"
+            value = values[param.name]
+        else:
+            continue
+        flag = _flag(param)
+        (options if flag else positional).extend([flag, value] if flag else [value])
+    return [*words, *positional, *options]
+
+
+def _hostile(kind: str, tmp_path):
+    path = tmp_path / "hostile" / "input.npz"
+    path.parent.mkdir()
+    if kind == "fifo":
+        os.mkfifo(path)
+    elif kind == "dev_zero_link":
+        path.symlink_to("/dev/zero")
+    elif kind == "folder":
+        path.mkdir()
+    return path
+
+
+@pytest.mark.parametrize(("words", "name", "kind"), list(_input_cases()))
+def test_every_path_a_command_reads_goes_through_the_door(
+    words, name, kind, baseline, tmp_path, capsys
+):
+    """A FIFO, a link to /dev/zero, a folder and a missing file in each input parameter: one
+    line naming it, exit 2, at once, and nothing written."""
+    cmd = dict(_commands())[words]
+    path = _hostile(kind, tmp_path)
+    args = _argv(words, cmd, baseline, tmp_path, {name: path})
+    rc, err, _ = _in_process(args, capsys)
+    _assert_one_line(rc, err, str(path))
+    assert not (tmp_path / "out").exists()
+    assert not list(tmp_path.glob("out.*"))
+
+
+def test_every_command_declares_what_it_writes():
+    """``@writes`` on every command (``cli.app.writes``), naming each of its output parameters:
+    a command that writes a folder locks it, a new command cannot skip the lock unseen."""
+    for words, cmd in _commands():
+        w = _writes(cmd)
+        assert w is not None, f"{' '.join(words)}: no @writes(...) (cli.app.writes)"
+        names = {p.name for p in cmd.params}
+        assert _outputs(cmd) <= names, (words, w)
+        for p in cmd.params:
+            if p.name in ("out", "json_out"):
+                assert p.name in _outputs(cmd), (words, p.name)
+
+
+def _folder_writers():
+    for words, cmd in _commands():
+        if (_writes(cmd) or {}).get("folder"):
+            yield pytest.param(words, id="-".join(words))
+
+
+@pytest.mark.parametrize("words", list(_folder_writers()))
+def test_every_folder_a_command_writes_is_locked(words, baseline, tmp_path, capsys):
+    """A second process writing the same folder (its lock held, as the first holds it) is
+    refused at once with train's refusal, and nothing is written."""
+    cmd = dict(_commands())[words]
+    out = tmp_path / "out"
+    out.mkdir()
+    args = _argv(words, cmd, baseline, tmp_path, {})
+    with folder_lock(out, "output folder" if words != ("train",) else "run folder"):
+        rc, err, _ = _in_process(args, capsys)
+    _assert_one_line(rc, err, str(out), "another process is writing this", "folder")
+    assert list(out.iterdir()) == []  # the lock's file is the holder's, removed with it
+
+
+def _numeric_cases():
+    for words, cmd in _commands():
+        for param in cmd.params:
+            ann = _annotation(param)
+            if ann in (int, float, list[int], list[float]):
+                yield pytest.param(words, param, id=f"{'-'.join(words)}-{param.name}")
+
+
+@pytest.mark.parametrize(("words", "param"), list(_numeric_cases()))
+def test_every_numeric_option_is_bounded_stated_and_checked_as_parsed(words, param, capsys):
+    """Each number has a least and a greatest value, stated in --help; 0, -1, nan, inf and
+    1e9 are accepted within them or refused in one line as the options are parsed, before
+    any work (the command is parsed, not run)."""
+    import typer.main
+
+    from sensorimotor.cli import app
+
+    assert param.min is not None, f"{words} {param.name}: no least value"
+    assert param.max is not None, f"{words} {param.name}: no greatest value"
+    group = typer.main.get_command(app)
+    cmd = dict(_commands())[words]
+    required = [p for p in cmd.params if p.required and p is not param]
+    for value in ("0", "-1", "nan", "inf", "1e9", "1000000000"):
+        args = [_flag(param), value] if _flag(param) else [value]
+        for p in required:  # placeholders: only parsed
+            args = ([_flag(p), "x"] if _flag(p) else ["x"]) + args
+        sub = group
+        for word in words[:-1]:
+            sub = sub.commands[word]
+        refusal = None
+        try:
+            ctx = sub.commands[words[-1]].make_context(words[-1], list(args))
+        except Exception as err:  # what it is is checked below
+            refusal = err
+        if refusal is not None:  # refused as parsed: a usage error of one line
+            assert hasattr(refusal, "format_message"), (words, value, refusal)
+            assert "\n" not in refusal.format_message().strip(), (words, value)
+            continue
+        got = ctx.params[param.name]
+        got = got if not isinstance(got, list | tuple) else got[0]
+        assert param.min <= got <= param.max, (words, param.name, value, got)
+    rc, _, _ = _in_process([*words, "--help"], capsys)
+    assert rc == 0
+
+
+def test_help_states_every_bound(capsys):
+    from sensorimotor.cli import run
+
+    capsys.readouterr()
+    assert run(["world", "random", "--help"]) == 0
+    out = capsys.readouterr().out
+    assert "1<=x<=40" in out
+    assert "0<=x<=200" in out
+    assert run(["sweep", "--help"]) == 0
+    assert "[train], [space], [asha]" in capsys.readouterr().out
+
+
+# the second pass's families, each by its case ----------------------------------------------------
+
+
+def test_a_ros2_bag_folder_whose_files_are_not_regular_is_refused_before_it_is_opened(
+    tmp_path, capsys
+):
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    os.mkfifo(bag / "bag_0.db3")
+    out = tmp_path / "db.npz"
+    rc, err, _ = _in_process(["import-bag", bag, "--out", out], capsys)
+    _assert_one_line(rc, err, "bag_0.db3", "a FIFO, not a file of a ROS 2 bag")
+    (bag / "bag_0.db3").unlink()
+    (bag / "bag_0.db3").symlink_to("/dev/zero")
+    rc, err, _ = _in_process(["import-bag", bag, "--out", out], capsys)
+    _assert_one_line(rc, err, "bag_0.db3", "a device")
+    assert not out.exists()
+
+
+def _map_yaml(tmp_path, image: str, origin: str = "[0.0, 0.0, 0.0]"):
+    yaml = tmp_path / "map.yaml"
+    yaml.write_text(f"image: {image}\nresolution: 0.05\norigin: {origin}\n")
+    return yaml
+
+
+@pytest.mark.parametrize("image", ["fifo", "dev_zero", "folder", "huge_png", "huge_pgm"])
+def test_the_image_a_map_names_goes_through_the_door_and_its_pixels_are_bounded(
+    image, tmp_path, capsys
+):
+    import struct
+    import zlib
+
+    path = tmp_path / "map.png"
+    if image == "fifo":
+        os.mkfifo(path)
+    elif image == "dev_zero":
+        path.symlink_to("/dev/zero")
+    elif image == "folder":
+        path.mkdir()
+    elif image == "huge_png":  # 20,000 x 20,000 announced: refused from the header, not decoded
+        ihdr = struct.pack(">IIBBBBB", 20_000, 20_000, 8, 0, 0, 0, 0)
+        chunk = b"IHDR" + ihdr
+        path.write_bytes(
+            b"\x89PNG\r\n\x1a\n"
+            + struct.pack(">I", len(ihdr))
+            + chunk
+            + struct.pack(">I", zlib.crc32(chunk))
+        )
+    else:
+        path = tmp_path / "map.pgm"
+        path.write_bytes(b"P5 20000 20000 255\n" + bytes(100))
+    out = tmp_path / "w.toml"
+    rc, err, seconds = _in_process(
+        ["world", "import", _map_yaml(tmp_path, path.name), "--out", out], capsys
+    )
+    _assert_one_line(rc, err, str(path))
+    if image.startswith("huge"):
+        assert "pixels" in err
+    assert seconds < 5
+    assert not out.exists()
+
+
+def test_a_map_origin_nested_deep_is_one_line(tmp_path, capsys):
+    yaml = _map_yaml(tmp_path, "map.pgm", "[" * 5000 + "]" * 5000)
+    rc, err, _ = _in_process(["world", "import", yaml, "--out", tmp_path / "w.toml"], capsys)
+    _assert_one_line(rc, err, "map.yaml:3", "a list within a list")
+
+
+@pytest.mark.parametrize("kind", ["grid", "random"])
+def test_a_sweep_of_a_billion_trials_is_refused_before_its_grid_is_built(
+    kind, tmp_path, capsys, square_db_path
+):
+    spec = tmp_path / "sweep.toml"
+    if kind == "grid":  # 1,000^3 combinations
+        values = ", ".join(str(2**i) for i in range(1_000))
+        body = f"[space]\nbatch_size = [{values}]\nhorizon = [{values}]\npatience = [{values}]\n"
+    else:
+        body = 'search = "random"\ntrials = 1000000000\n[space]\nlr = [0.1, 0.2]\n'
+    spec.write_text(f'data = "{square_db_path}"\n{body}')
+    rc, err, seconds = _in_process(["sweep", spec, "--out", tmp_path / "s"], capsys)
+    _assert_one_line(rc, err, str(spec), "1,000")
+    assert seconds < 5
+    assert not (tmp_path / "s").exists()
+
+
+def test_a_sweep_whose_data_is_a_fifo_is_refused_through_the_door(tmp_path, capsys):
+    fifo = tmp_path / "data.npz"
+    os.mkfifo(fifo)
+    spec = tmp_path / "sweep.toml"
+    spec.write_text(f'data = "{fifo}"\n[space]\nlr = [0.1, 0.2]\n')
+    rc, err, _ = _in_process(["sweep", spec, "--out", tmp_path / "s"], capsys)
+    _assert_one_line(rc, err, str(fifo), "a FIFO, not a database")
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["world", "random", "--name", "square"],
+        ["world", "random", "--name", "Rooms2"],
+        ["world", "import", "map.yaml", "--name", "rooms1"],
+    ],
+)
+def test_a_built_in_worlds_name_is_refused_up_front(args, tmp_path, capsys):
+    out = tmp_path / "w.toml"
+    rc, err, _ = _in_process([*args, "--out", out], capsys)
+    _assert_one_line(rc, err, "the name of a built-in world")
+    assert not out.exists()
+
+
+def test_an_rl_out_that_is_a_file_or_a_read_only_folder_is_one_line(tmp_path, capsys):
+    pytest.importorskip("stable_baselines3")
+    taken = tmp_path / "taken"
+    taken.write_text("mine")
+    args = ["rl", "corner", "--features", "pose", "--seeds", "1", "--steps", "64"]
+    rc, err, _ = _in_process([*args, "--out", taken], capsys)
+    _assert_one_line(rc, err, str(taken), "not a folder")
+    assert taken.read_text() == "mine"
+    if os.geteuid() != 0:  # root writes anywhere
+        locked = tmp_path / "ro"
+        locked.mkdir(mode=0o500)
+        rc, err, _ = _in_process([*args, "--out", locked], capsys)
+        _assert_one_line(rc, err, str(locked))
+
+
+def test_angles_far_out_wrap_at_once_and_near_ones_keep_their_bits():
+    import math
+
+    from sensorimotor.sim.core import wrap_angle
+
+    for a in (1e300, -1e300, 1e18, 123456.789):
+        assert -math.pi < wrap_angle(a) <= math.pi
+    assert math.isnan(wrap_angle(math.inf))
+    for a in (3.5, -3.5, 7.0, -7.0, 9.42, math.pi, -math.pi):
+        want = a
+        while want > math.pi:
+            want -= 2 * math.pi
+        while want <= -math.pi:
+            want += 2 * math.pi
+        assert wrap_angle(a) == want  # the same bits as the loop it replaces
+
+
+def test_a_simulated_database_whose_motors_do_not_move_it_is_refused(tmp_path, capsys):
+    db = generate(load_world("square"), 2_000, seed=0)
+    motors = db.motors.copy()
+    motors[:, 0] = -5.0  # every forward command -5: the poses moved forward
+    save_database(Database(db.sensors, motors, db.poses, db.meta), tmp_path / "lie.npz")
+    rc, err, _ = _in_process(
+        ["analyze", "raw", "--data", tmp_path / "lie.npz", "--out", tmp_path / "a"], capsys
+    )
+    _assert_one_line(rc, err, "lie.npz", "its motors do not move it")
+    save_database(db, tmp_path / "true.npz")
+    assert len(load_database(tmp_path / "true.npz")) == 2_000
+
+
+def test_a_recording_of_impossible_odometry_and_commands_drops_and_counts_them(tmp_path):
+    pytest.importorskip("rosbags")
+    import math
+
+    from sensorimotor.sim.bagcodec import unit_yaw, write_bag
+    from sensorimotor.sim.rosbag import BagTopics, import_bag
+
+    assert math.isnan(unit_yaw(0.0, 0.0, 0.0, 0.0))  # (0, 0, 0, 0): no heading
+    db = generate(load_world("square"), 600, seed=1)
+    poses, motors = db.poses.astype(np.float64), db.motors.astype(np.float64)
+    poses[100, 2] = np.nan  # a quaternion of NaN: not of unit norm
+    poses[200, 0] = 1e300  # finite in float64, infinite in float32
+    poses[300, 0] += 1e6  # a jump there and back in a tenth of a second
+    motors[400, 0] = 1e30  # /cmd_vel of 1e30 m/s
+    bag = write_bag(Database(db.sensors, motors, poses, db.meta), tmp_path / "bad", cmd=True)
+    got = import_bag(bag, BagTopics(cmd="/cmd_vel"))
+    c = got.meta["source"]["counts"]
+    assert (c["odom_bad_quaternion"], c["odom_not_finite"], c["odom_jumps"]) == (1, 1, 1)
+    assert c["rows_too_fast"] == 1
+    assert np.isfinite(got.poses).all()
+    assert np.abs(got.motors[:, 0]).max() <= 1.0 + 1e-6
+    assert np.abs(got.poses[:, :2]).max() <= 50
+
+
+def test_the_records_a_stage_reads_back_go_through_the_door(tmp_path):
+    """A cache's key, a trial's result: none or unparsable is made again; a FIFO in its place
+    is refused, never read (it would block for ever)."""
+    from sensorimotor.files import read_json_if_any
+    from sensorimotor.jobs.cache import read_key
+
+    assert read_json_if_any(tmp_path / "none.json", "stage record") is None
+    (tmp_path / "bad.json").write_text("{" * 10)
+    assert read_key(tmp_path / "bad.json") is None
+    (tmp_path / "ok.json").write_text('{"key": "abc"}')
+    assert read_key(tmp_path / "ok.json") == "abc"
+    os.mkfifo(tmp_path / "fifo.json")
+    with pytest.raises(InputError, match="a FIFO, not a stage record"):
+        read_key(tmp_path / "fifo.json")

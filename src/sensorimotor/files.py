@@ -19,6 +19,7 @@ import json
 import math
 import os
 import re
+import shutil
 import stat
 import tempfile
 from collections.abc import Iterator
@@ -185,6 +186,38 @@ def check_input(path: str | Path, what: str, max_bytes: int | None = None) -> Pa
     return path
 
 
+MAX_FOLDER_FILES = 10_000  # files in an input folder (a ROS 2 bag holds a handful)
+
+
+def check_input_folder(
+    folder: str | Path, what: str, max_bytes: int | None = None, max_files: int = MAX_FOLDER_FILES
+) -> list[Path]:
+    """An input that is a folder of files (a ROS 2 bag): the folder itself, then each file in
+    it through ``check_input`` (a FIFO, a device, a link to one, a folder inside: refused
+    before anything is opened); the files, sorted."""
+    folder = Path(folder)
+    try:
+        mode = folder.stat().st_mode
+    except (FileNotFoundError, NotADirectoryError):
+        raise InputError(f"{folder}: {what} not found") from None
+    except OSError as err:
+        raise InputError(f"{folder}: cannot read {what} ({err.strerror})") from None
+    if not stat.S_ISDIR(mode):
+        raise InputError(f"{folder}: is {_kind(mode)}, not a {what} folder")
+    try:
+        with os.scandir(folder) as entries:
+            files = []
+            for entry in entries:
+                files.append(Path(entry.path))
+                if len(files) > max_files:
+                    raise InputError(f"{folder}: more than {max_files:,} files for a {what}")
+    except OSError as err:
+        raise InputError(f"{folder}: cannot read {what} ({err.strerror})") from None
+    for path in sorted(files):
+        check_input(path, f"file of a {what}", max_bytes)
+    return sorted(files)
+
+
 def check_nesting(obj, source: str, limit: int = MAX_NESTING) -> None:
     """Refuse tables and lists nested deeper than ``limit`` (no real file is)."""
     stack = [(obj, 1)]
@@ -206,6 +239,25 @@ def read_json(path: str | Path, what: str):
     except (OSError, UnicodeDecodeError, ValueError) as err:
         raise InputError(f"{path}: not a readable {what} ({err.__class__.__name__})") from None
     check_nesting(obj, str(path))
+    return obj
+
+
+def read_json_if_any(path: str | Path, what: str):
+    """A JSON file this package may have written earlier (a cache's key, a trial's result):
+    None where there is none, or where it does not parse (it is made again); one that is not
+    a regular file (a FIFO, a folder) or is too large is refused as any input is."""
+    path = Path(path)
+    try:
+        mode = path.stat().st_mode
+    except OSError:
+        return None
+    if not stat.S_ISREG(mode) or path.stat().st_size > MAX_TEXT_BYTES:
+        check_input(path, what, MAX_TEXT_BYTES)  # raises, naming what it is
+    try:
+        obj = json.loads(path.read_text(encoding="utf-8"))
+        check_nesting(obj, str(path))
+    except (RecursionError, InputError, OSError, UnicodeDecodeError, ValueError):
+        return None
     return obj
 
 
@@ -233,6 +285,31 @@ def folder_lock(folder: Path, what: str) -> Iterator[None]:
             lock.unlink(missing_ok=True)  # held, so ours to remove: a finished folder has none
     finally:
         os.close(fd)
+
+
+@contextmanager
+def lock_folder(out: str | Path, what: str = "output folder") -> Iterator[None]:
+    """Create ``out`` if needed and hold its lock (``folder_lock``) while a command writes it:
+    the one lock of every folder a command writes, taken before its first byte; a folder made
+    here and left empty by a refusal is removed again."""
+    out = Path(out)
+    if out.is_symlink() and not out.is_dir():
+        raise InputError(f"{out}: is a symbolic link, not a folder")
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: is a file, not a folder")
+    made = not out.exists()
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise InputError(f"{out}: cannot create the {what} ({err.strerror})") from None
+    try:
+        with folder_lock(out, what):
+            yield
+    except BaseException:
+        with contextlib.suppress(OSError):
+            if made and all(p.name == ".lock" for p in out.iterdir()):
+                shutil.rmtree(out, ignore_errors=True)
+        raise
 
 
 def file_hash(path: str | Path) -> str:

@@ -56,8 +56,8 @@ def test_same_seed_same_plan_and_the_world_file_round_trips(tmp_path):
 
 
 def test_too_many_rooms_and_bad_doors_are_refused():
-    with pytest.raises(InputError, match="200 rooms do not fit a 20 x 20 world"):
-        random_plan(200, 0, size=(20.0, 20.0))
+    with pytest.raises(InputError, match="30 rooms do not fit a 20 x 20 world"):
+        random_plan(30, 0, size=(20.0, 20.0))
     with pytest.raises(InputError, match="--door must be positive"):
         random_plan(4, 0, door=0.0)
     with pytest.raises(InputError, match="--door must be positive"):
@@ -70,8 +70,8 @@ def test_world_random_from_the_command_line(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert load_world(out) == random_plan(7, 4)
     bad = tmp_path / "big.toml"
-    proc = run_cli("world", "random", "--rooms", "500", "--size", "30", "--out", bad)
-    assert_one_line_error(proc, "500 rooms do not fit a 30 x 30 world")
+    proc = run_cli("world", "random", "--rooms", "40", "--size", "20", "--out", bad)
+    assert_one_line_error(proc, "40 rooms do not fit a 20 x 20 world")
     assert not bad.exists()
 
 

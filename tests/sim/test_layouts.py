@@ -95,9 +95,10 @@ def re_escape(text: str) -> str:
 @pytest.mark.parametrize(
     ("option", "needle"),
     [
-        (["--rays", "5000"], "--rays must be an integer from 1 to 1,024, got 5000"),
-        (["--fov", "6.3"], "--fov must be from 0 to 2 pi"),
-        (["--dropout", "1.5"], "--dropout must be a probability"),
+        (["--rays", "5000"], "'--rays': Input should be less than or equal to 1024"),
+        (["--fov", "6.3"], "'--fov': Input should be less than or equal to 6.2832"),
+        (["--fov", "6.2832"], "--fov must be from 0 to 2 pi"),  # the bound, then exactly
+        (["--dropout", "1.5"], "'--dropout': Input should be less than or equal to 1"),
     ],
 )
 def test_generate_refuses_a_bad_option_in_one_line_writing_nothing(tmp_path, option, needle):

@@ -17,23 +17,29 @@ from sensorimotor.errors import InputError
 
 def main() -> None:
     """Entry point: every user error (a bad file, a bad option) is one line on stderr, exit 2."""
+    sys.exit(run(sys.argv[1:]))
+
+
+def run(argv: list[str]) -> int:
+    """Run the command line on ``argv`` in this process and return its exit status: every
+    user error one line on stderr and 2 (what ``main`` does; the tests call it directly)."""
     # typer carries click's exceptions (vendored in recent releases): find them by name
     base = {c.__name__: c for c in typer.BadParameter.__mro__}
     usage_error, click_exception = base["UsageError"], base["ClickException"]
     try:
-        rc = app(standalone_mode=False)
+        rc = app(args=list(argv), prog_name="sensorimotor", standalone_mode=False)
     except InputError as err:
         print(f"error: {err}", file=sys.stderr)
-        sys.exit(2)
+        return 2
     except usage_error as err:
         message = err.format_message().strip()
         if message:  # empty when no arguments were given: the help has been shown
             hint = f" (try `{err.ctx.command_path} --help`)" if err.ctx is not None else ""
             print(f"error: {message}{hint}", file=sys.stderr)
-        sys.exit(2)
+        return 2
     except click_exception as err:
         print(f"error: {err.format_message()}", file=sys.stderr)
-        sys.exit(err.exit_code)
+        return err.exit_code
     except (typer.Abort, KeyboardInterrupt):
         rc = INTERRUPTED
     if rc == INTERRUPTED:  # typer turns Ctrl-C into this exit code
@@ -42,4 +48,4 @@ def main() -> None:
             "again to go on (train: add --resume)",
             file=sys.stderr,
         )
-    sys.exit(rc if isinstance(rc, int) else 0)
+    return rc if isinstance(rc, int) else 0

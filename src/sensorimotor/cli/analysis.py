@@ -8,11 +8,21 @@ from typing import Annotated
 
 import typer
 
-from sensorimotor.cli.app import app, err_console, progress
+from sensorimotor.cli.app import (
+    MAX_CLONES,
+    MAX_CLUSTERS,
+    MAX_CONTEXTS,
+    MAX_PAIRS,
+    app,
+    err_console,
+    progress,
+    writes,
+)
 from sensorimotor.sim import MAX_SEED
 
 
 @app.command()
+@writes(folder="out")
 def analyze(
     run: Annotated[
         str,
@@ -58,20 +68,31 @@ def analyze(
 
 
 @app.command("map")
+@writes(folder="out")
 def map_cmd(
     run: Annotated[str, typer.Argument(help="A run folder, or `raw` for the readings / range.")],
     data: Annotated[Path, typer.Option(help="Database: the map is fitted on its train split.")],
     out: Annotated[Path, typer.Option(help="Output folder for map.json, GraphML, figures.")],
-    clusters: Annotated[int, typer.Option(help="Cells: k of k-means (2..200).")] = 20,
-    clones: Annotated[int, typer.Option(help="Clones per cell (1..100, K C N <= 3000).")] = 20,
+    clusters: Annotated[
+        int, typer.Option(min=2, max=MAX_CLUSTERS, help="Cells: k of k-means.")
+    ] = 20,
+    clones: Annotated[
+        int, typer.Option(min=1, max=MAX_CLONES, help="Clones per cell (K C N <= 3000).")
+    ] = 20,
     contexts: Annotated[
-        int, typer.Option(help="N: each clone split by the slow context (1..16; 1: plain CSCG).")
+        int,
+        typer.Option(
+            min=1, max=MAX_CONTEXTS, help="N: each clone split by the slow context (1: plain CSCG)."
+        ),
     ] = 4,
     fit_data: Annotated[
         Path | None, typer.Option(help="Fit the cells' k-means on this database (transfer).")
     ] = None,
     seed: Annotated[int, typer.Option(min=0, max=MAX_SEED, help="Seed of k-means and EM.")] = 0,
-    pairs: Annotated[int, typer.Option(help="Start/goal pairs planned in the simulator.")] = 300,
+    pairs: Annotated[
+        int,
+        typer.Option(min=0, max=MAX_PAIRS, help="Start/goal pairs planned in the simulator."),
+    ] = 300,
 ) -> None:
     """Learn a map from a representation's cells: the cell graph and a cloned HMM (EM, Viterbi,
     each clone split by the slow context), scored on the test split (bits/step, localisation, rooms); see analysis/map/mapping.py."""

@@ -3,6 +3,8 @@ the modules beside this one, one per layer of the package."""
 
 from __future__ import annotations
 
+import functools
+import inspect
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -29,6 +31,34 @@ err_console = Console(stderr=True, soft_wrap=True)
 WorldArg = Annotated[
     str, typer.Argument(help="World: square, rooms1, rooms2, or the path of a .toml world file.")
 ]
+
+
+def writes(folder: str | None = None, files: tuple[str, ...] = (), locked_inside: bool = False):
+    """Declare what a command writes, where it is declared (``tests/test_hostile.py`` checks
+    that every command does): ``folder``, the parameter naming a folder it writes, locked
+    (``files.lock_folder``: the same lock and refusal as ``train``'s run folder) before the
+    command's first byte, or by the library it calls (``locked_inside``: ``train``, whose run
+    folders are locked one by one); ``files``, the parameters naming single files it writes
+    (atomically, never through a link or a device: ``files.atomic_path``)."""
+
+    def decorate(fn):
+        signature = inspect.signature(fn)
+
+        @functools.wraps(fn)
+        def command(*args, **kwargs):
+            if folder is None or locked_inside:
+                return fn(*args, **kwargs)
+            from sensorimotor.files import lock_folder
+
+            bound = signature.bind(*args, **kwargs)
+            bound.apply_defaults()
+            with lock_folder(Path(bound.arguments[folder]), "output folder"):
+                return fn(*args, **kwargs)
+
+        command.__writes__ = {"folder": folder, "files": files, "locked_inside": locked_inside}
+        return command
+
+    return decorate
 
 
 def progress_bar() -> Progress:
@@ -91,6 +121,27 @@ app.add_typer(plot_app, name="plot")
 PlotOut = Annotated[Path, typer.Option(help="Output .png (written atomically).")]
 PlotSvg = Annotated[bool, typer.Option(help="Also write an .svg beside the .png.")]
 
+
+# the bounds of the numeric options, each what a run of that size costs at most (checked as
+# the options are parsed, before any work; `--help` states them)
+MAX_STEPS = 100_000_000  # rows of a database: 1.2 GB of 5 rays, 100 x the paper's
+MAX_RANGE = 1_000.0  # units a laser reads: 20 x the largest built-in world
+MAX_FOV = 6.2832  # rad: a full turn (2 pi, checked exactly by the layout)
+MAX_NOISE = 100.0  # std of the reading noise: 10 x the paper's range
+MAX_MOTOR_NOISE = 10.0  # std of the motor noise: 10 x the longest step
+MAX_RATE = 10_000.0  # Hz of a recording's rows: 250 x a fast laser's
+MAX_VIEW = 10_000.0  # units around the agent in a drawing
+MAX_SEEDS = 100  # seeds of a grid (the paper: 5)
+MAX_WORKERS = 1_024  # jobs at a time
+MAX_EPOCHS = 1_000_000
+MAX_MINUTES = 525_600.0  # a year
+MAX_AGENT_STEPS = 100_000_000  # environment steps of one agent (PPO: days at 1,000/s)
+MAX_EPISODES = 10_000  # episodes of one evaluation
+MAX_PAIRS = 3_000  # start/goal pairs a map plans (analysis.map.planning.MAX_PAIRS)
+MAX_CLUSTERS, MAX_CLONES, MAX_CONTEXTS = 200, 100, 16  # a map's (analysis.map.mapping)
+MAX_ROOMS = 40  # a floor plan's rooms (sim.floorplan.MAX_ROOMS: about 5 s)
+MAX_SIZE = 200.0  # a floor plan's side (sim.floorplan.MAX_SIZE)
+MAX_DOOR = 100.0  # a doorway's width
 
 ModelArg = Annotated[str, typer.Argument(help="Model: s, sm, rec-s or rec-sm.")]
 

@@ -10,6 +10,13 @@ from typing import Annotated
 import typer
 
 from sensorimotor.cli.app import (
+    MAX_FOV,
+    MAX_MOTOR_NOISE,
+    MAX_NOISE,
+    MAX_RANGE,
+    MAX_RATE,
+    MAX_STEPS,
+    MAX_VIEW,
     PlotOut,
     PlotSvg,
     WorldArg,
@@ -17,9 +24,10 @@ from sensorimotor.cli.app import (
     err_console,
     plot_app,
     progress,
+    writes,
 )
 from sensorimotor.errors import InputError
-from sensorimotor.sim import MAX_SEED
+from sensorimotor.sim import MAX_RAYS, MAX_SEED
 
 
 def default_name(world: str, seed: int, rays: int, fov: float, range_: float, noise: float,
@@ -37,9 +45,12 @@ def default_name(world: str, seed: int, rays: int, fov: float, range_: float, no
 
 
 @app.command()
+@writes(files=("out",))
 def generate(
     world: WorldArg,
-    steps: Annotated[int, typer.Option(help="Number of steps (rows) to record.")] = 1_000_000,
+    steps: Annotated[
+        int, typer.Option(min=1, max=MAX_STEPS, help="Number of steps (rows) to record.")
+    ] = 1_000_000,
     seed: Annotated[
         int, typer.Option(min=0, max=MAX_SEED, help="Seed of the random generator (PCG64).")
     ] = 0,
@@ -50,27 +61,47 @@ def generate(
             "recording appended, e.g. rooms1_s0_rays64_noise0.05.npz)."
         ),
     ] = None,
-    rays: Annotated[int, typer.Option(help="Lasers recorded (1 to 1,024); the paper's: 5.")] = 5,
+    rays: Annotated[
+        int, typer.Option(min=1, max=MAX_RAYS, help="Lasers recorded; the paper's: 5.")
+    ] = 5,
     fov: Annotated[
         float,
-        typer.Option(help="Field of view (rad, up to 2 pi: a full turn), centred on the heading."),
+        typer.Option(
+            min=0,
+            max=MAX_FOV,
+            help="Field of view (rad, up to 2 pi: a full turn), centred on the heading.",
+        ),
     ] = 1.2,
     range_: Annotated[
-        float, typer.Option("--range", help="What a laser reads when no wall is nearer (units).")
+        float,
+        typer.Option(
+            "--range",
+            min=0,
+            max=MAX_RANGE,
+            help="What a laser reads when no wall is nearer (units).",
+        ),
     ] = 10.0,
     noise: Annotated[
-        float, typer.Option(help="Std of Gaussian noise on each reading (see --noise-kind).")
+        float,
+        typer.Option(
+            min=0, max=MAX_NOISE, help="Std of Gaussian noise on each reading (see --noise-kind)."
+        ),
     ] = 0.0,
     noise_kind: Annotated[
         str,
         typer.Option(help="absolute: --noise in units; relative: a fraction of the reading."),
     ] = "absolute",
     dropout: Annotated[
-        float, typer.Option(help="Probability that a reading drops out (reads the range).")
+        float,
+        typer.Option(min=0, max=1, help="Probability that a reading drops out (reads the range)."),
     ] = 0.0,
     motor_noise: Annotated[
         float,
-        typer.Option(help="Std of Gaussian noise on the executed d and r (the chosen are kept)."),
+        typer.Option(
+            min=0,
+            max=MAX_MOTOR_NOISE,
+            help="Std of Gaussian noise on the executed d and r (the chosen are kept).",
+        ),
     ] = 0.0,
 ) -> None:
     """Record a database of the paper's random wall-avoiding behaviour in WORLD.
@@ -112,6 +143,7 @@ def generate(
 
 
 @app.command("import-bag")
+@writes(files=("out",))
 def import_bag(
     bag: Annotated[Path, typer.Argument(help="ROS 1 .bag, ROS 2 bag folder or .mcap file.")],
     out: Annotated[Path, typer.Option(help="Database (.npz) to write.")],
@@ -120,10 +152,18 @@ def import_bag(
     cmd: Annotated[
         str | None, typer.Option(help="Twist topic of the commands (default: odometry's motion).")
     ] = None,
-    rays: Annotated[int, typer.Option(help="Lasers (the encoders read 5).")] = 5,
-    fov: Annotated[float, typer.Option(help="Angle from first to last ray (rad).")] = 1.2,
-    range_: Annotated[float, typer.Option("--range", help="Reading of no return.")] = 10.0,
-    rate: Annotated[float | None, typer.Option(help="Rows/s (default: the scans').")] = None,
+    rays: Annotated[
+        int, typer.Option(min=1, max=MAX_RAYS, help="Lasers (the encoders read 5).")
+    ] = 5,
+    fov: Annotated[
+        float, typer.Option(min=0, max=MAX_FOV, help="Angle from first to last ray (rad).")
+    ] = 1.2,
+    range_: Annotated[
+        float, typer.Option("--range", min=0, max=MAX_RANGE, help="Reading of no return.")
+    ] = 10.0,
+    rate: Annotated[
+        float | None, typer.Option(min=0, max=MAX_RATE, help="Rows/s (default: the scans').")
+    ] = None,
     world: Annotated[str | None, typer.Option(help="World of the poses' frame.")] = None,
     frame: Annotated[str | None, typer.Option(help="Poses in this /tf frame (map).")] = None,
 ) -> None:
@@ -186,6 +226,7 @@ def _check_png(out: Path) -> Path:
 
 
 @plot_app.command("world")
+@writes(files=("out",))
 def plot_world_cmd(
     worlds: Annotated[
         list[str],
@@ -203,11 +244,14 @@ def plot_world_cmd(
 
 
 @plot_app.command("trajectory")
+@writes(files=("out",))
 def plot_trajectory_cmd(
     data: Annotated[
         list[Path], typer.Option(help="Database (.npz); repeat for panels side by side.")
     ],
-    steps: Annotated[int, typer.Option(help="Steps drawn from the start of each.")] = 10_000,
+    steps: Annotated[
+        int, typer.Option(min=1, max=MAX_STEPS, help="Steps drawn from the start of each.")
+    ] = 10_000,
     out: PlotOut = Path("trajectories.png"),
     svg: PlotSvg = False,
 ) -> None:
@@ -222,14 +266,24 @@ def plot_trajectory_cmd(
 
 
 @plot_app.command("perception")
+@writes(files=("out",))
 def plot_perception_cmd(
     data: Annotated[Path, typer.Option(help="Database (.npz) to take the situations from.")],
     row: Annotated[
         list[int] | None,
-        typer.Option(help="Draw these rows instead of the five situations; repeatable."),
+        typer.Option(
+            min=0,
+            max=MAX_STEPS,
+            help="Draw these rows instead of the five situations; repeatable.",
+        ),
     ] = None,
     view: Annotated[
-        float, typer.Option(help="Half-width of the window around the agent (units); 0: all.")
+        float,
+        typer.Option(
+            min=0,
+            max=MAX_VIEW,
+            help="Half-width of the window around the agent (units); 0: all.",
+        ),
     ] = 7.5,
     out: PlotOut = Path("perception.png"),
     svg: PlotSvg = False,

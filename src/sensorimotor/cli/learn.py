@@ -9,10 +9,13 @@ import typer
 from rich.console import Console
 
 from sensorimotor.cli.app import (
+    MAX_EPOCHS,
+    MAX_MINUTES,
     ModelArg,
     _check_model,
     app,
     err_console,
+    writes,
 )
 from sensorimotor.errors import InputError
 from sensorimotor.learn.models import S
@@ -25,6 +28,7 @@ SET_HELP = (
 
 
 @app.command()
+@writes(folder="out", locked_inside=True)
 def train(
     model: ModelArg,
     data: Annotated[Path, typer.Option(help="Database (.npz) from `sensorimotor generate`.")],
@@ -33,10 +37,14 @@ def train(
         int, typer.Option(min=0, max=MAX_SEED, help="Seed of the initial weights and data order.")
     ] = 0,
     max_epochs: Annotated[
-        int | None, typer.Option(help="Cap on epochs (default: none, early stopping alone).")
+        int | None,
+        typer.Option(
+            min=1, max=MAX_EPOCHS, help="Cap on epochs (default: none, early stopping alone)."
+        ),
     ] = None,
     max_minutes: Annotated[
-        float | None, typer.Option(help="Cap on training minutes (default: none).")
+        float | None,
+        typer.Option(min=0, max=MAX_MINUTES, help="Cap on training minutes (default: none)."),
     ] = None,
     device: Annotated[str, typer.Option(help="auto, cpu or cuda.")] = "cpu",
     resume: Annotated[
@@ -168,6 +176,7 @@ def _train(model, data: Path, out: Path, config, seeds: list[int], note, resume,
 
 
 @app.command()
+@writes(files=("json_out",))
 def evaluate(
     run_dir: Annotated[Path, typer.Argument(help="Run folder from `sensorimotor train`.")],
     data: Annotated[list[Path], typer.Option(help="Databases to test on (repeatable).")],
@@ -205,6 +214,7 @@ def evaluate(
 
 
 @app.command()
+@writes(files=("json_out",))
 def table(
     run_dirs: Annotated[list[Path], typer.Argument(help="Run folders (several seeds allowed).")],
     data: Annotated[list[Path], typer.Option(help="Test databases, one per world (repeatable).")],

@@ -9,8 +9,11 @@ from typing import Annotated
 import typer
 
 from sensorimotor.cli.app import (
+    MAX_SEEDS,
+    MAX_WORKERS,
     app,
     err_console,
+    writes,
 )
 
 BackendOpt = Annotated[str, typer.Option(help="local: worker processes here; ray: Ray tasks.")]
@@ -18,6 +21,7 @@ AddressOpt = Annotated[str | None, typer.Option(help="Ray cluster to join (defau
 
 
 @app.command()
+@writes(folder="out")
 def reproduce(
     scale: Annotated[
         str,
@@ -35,13 +39,18 @@ def reproduce(
     seeds: Annotated[
         int | None,
         typer.Option(
+            min=1,
+            max=MAX_SEEDS,
             help="How many seeds per model and world, 0..N-1 (a count, unlike train's list; "
-            "default: the scale's)."
+            "default: the scale's).",
         ),
     ] = None,
     device: Annotated[str, typer.Option(help="auto, cpu or cuda.")] = "cpu",
     workers: Annotated[
-        int | None, typer.Option(help="Jobs at a time (default: every core, or every Ray CPU).")
+        int | None,
+        typer.Option(
+            min=1, max=MAX_WORKERS, help="Jobs at a time (default: every core, or every Ray CPU)."
+        ),
     ] = None,
     worlds: Annotated[
         str,
@@ -89,13 +98,15 @@ def reproduce(
 
 
 @app.command()
+@writes(folder="out")
 def sweep(
-    spec: Annotated[Path, typer.Argument(help="Sweep file: data, [train], [space], [asha].")],
+    spec: Annotated[Path, typer.Argument(help="Sweep file: data, \\[train], \\[space], \\[asha].")],
     out: Annotated[Path, typer.Option(help="Sweep folder: runs/trial_NNN, sweep.csv/.md/.png.")],
     backend: BackendOpt = "local",
     address: AddressOpt = None,
     workers: Annotated[
-        int | None, typer.Option(help="Trials at a time (default: all CPUs).")
+        int | None,
+        typer.Option(min=1, max=MAX_WORKERS, help="Trials at a time (default: all CPUs)."),
     ] = None,
     resume: Annotated[bool, typer.Option(help="Go on with the sweep in --out.")] = False,
 ) -> None:

@@ -7,21 +7,35 @@ from typing import Annotated
 
 import typer
 
-from sensorimotor.cli.app import app, err_console, progress
+from sensorimotor.cli.app import (
+    MAX_AGENT_STEPS,
+    MAX_EPISODES,
+    MAX_SEEDS,
+    MAX_WORKERS,
+    app,
+    err_console,
+    progress,
+    writes,
+)
 from sensorimotor.cli.reproduce import AddressOpt, BackendOpt
 from sensorimotor.jobs.backend import check_backend, job_runner, run_all
 from sensorimotor.rl import RUNS_ENV
 
 
 @app.command()
+@writes(folder="out")
 def rl(
     task: Annotated[str, typer.Argument(help="corner, doorway or explore.")],
     world: Annotated[str, typer.Option(help="World the agents learn in.")] = "rooms1",
     features: Annotated[
         str, typer.Option(help="Comma-separated: pose, raw, s, sm, rec-s, rec-sm, random.")
     ] = "pose,raw,rec-sm,random",
-    seeds: Annotated[int, typer.Option(min=1, help="Agents per feature set: seeds 0..N-1.")] = 3,
-    steps: Annotated[int, typer.Option(min=1, help="Environment steps per agent.")] = 100_000,
+    seeds: Annotated[
+        int, typer.Option(min=1, max=MAX_SEEDS, help="Agents per feature set: seeds 0..N-1.")
+    ] = 3,
+    steps: Annotated[
+        int, typer.Option(min=1, max=MAX_AGENT_STEPS, help="Environment steps per agent.")
+    ] = 100_000,
     out: Annotated[Path, typer.Option(help="Output folder; run again to go on.")] = Path("rl"),
     runs: Annotated[
         Path | None,
@@ -33,13 +47,21 @@ def rl(
     ] = None,
     trained_on: Annotated[str | None, typer.Option(help="Encoders' world [WORLD].")] = None,
     transfer: Annotated[str, typer.Option(help="Comma-separated worlds to test in.")] = "",
-    eval_every: Annotated[int, typer.Option(min=1, help="Steps between evaluations.")] = 5_000,
-    eval_episodes: Annotated[int, typer.Option(min=1, help="Episodes an evaluation.")] = 50,
+    eval_every: Annotated[
+        int, typer.Option(min=1, max=MAX_AGENT_STEPS, help="Steps between evaluations.")
+    ] = 5_000,
+    eval_episodes: Annotated[
+        int, typer.Option(min=1, max=MAX_EPISODES, help="Episodes an evaluation.")
+    ] = 50,
     backend: BackendOpt = "local",
     address: AddressOpt = None,
     workers: Annotated[
         int | None,
-        typer.Option(help="Agents at a time (default: one, in this process; ray: every CPU)."),
+        typer.Option(
+            min=1,
+            max=MAX_WORKERS,
+            help="Agents at a time (default: one, in this process; ray: every CPU).",
+        ),
     ] = None,
 ) -> None:
     """PPO on frozen encoders' features (the paper's planned RL test): success per feature set."""

@@ -12,7 +12,7 @@ from typing import Annotated
 
 import typer
 
-from sensorimotor.cli.app import app
+from sensorimotor.cli.app import MAX_DOOR, MAX_ROOMS, MAX_SIZE, app, writes
 from sensorimotor.errors import InputError
 from sensorimotor.files import check_writable, write_text_atomic
 from sensorimotor.sim import MAX_SEED
@@ -37,6 +37,16 @@ def _write(world, out: Path, comment: str) -> None:
     )
 
 
+def _check_name(name: str | None) -> None:
+    from sensorimotor.sim.world import BUILTIN_WORLDS
+
+    if name is not None and name.lower() in BUILTIN_WORLDS:
+        raise InputError(
+            f"--name {name}: the name of a built-in world ({', '.join(BUILTIN_WORLDS)}); "
+            "choose another (the commands would take the built-in one)"
+        )
+
+
 def _check_toml(out: Path) -> None:
     if out.suffix.lower() != ".toml":
         raise InputError(f"{out}: --out must be a .toml file")
@@ -44,28 +54,43 @@ def _check_toml(out: Path) -> None:
 
 
 @world_app.command("random")
+@writes(files=("out",))
 def random_world(
     out: WorldOut,
-    rooms: Annotated[int, typer.Option(help="Rooms of the plan.")] = 8,
+    rooms: Annotated[
+        int,
+        typer.Option(
+            min=1,
+            max=MAX_ROOMS,
+            help="Rooms of the plan (the work grows as rooms^2 x size^2: 40 rooms of the "
+            "default size take about 5 s).",
+        ),
+    ] = 8,
     seed: Annotated[int, typer.Option(min=0, max=MAX_SEED, help="Seed of the plan.")] = 0,
-    door: Annotated[float, typer.Option(help="Doorway width (units).")] = 1.5,
+    door: Annotated[float, typer.Option(min=0, max=MAX_DOOR, help="Doorway width (units).")] = 1.5,
     size: Annotated[
-        float | None, typer.Option(help="Side of the square world (default: 10 per room^0.5).")
+        float | None,
+        typer.Option(
+            min=0, max=MAX_SIZE, help="Side of the square world (default: 10 per room^0.5)."
+        ),
     ] = None,
     name: Annotated[str | None, typer.Option(help="World name (default: planN-sS).")] = None,
 ) -> None:
     """A floor plan: a square split recursively into named rooms joined by doorways, every
     room reachable (checked by a flood fill)."""
-    from sensorimotor.sim.floorplan import random_plan
+    from sensorimotor.sim.floorplan import check_plan_work, random_plan
 
+    _check_name(name)
     _check_toml(out)
-    if size is not None and not 0 < size <= 10_000:
-        raise InputError(f"--size must be positive and at most 10000, got {size}")
+    if size is not None and not 0 < size <= MAX_SIZE:
+        raise InputError(f"--size must be positive and at most {MAX_SIZE:g}, got {size}")
+    check_plan_work(rooms, size)
     world = random_plan(rooms, seed, door, None if size is None else (size, size), name=name)
     _write(world, out, f"sensorimotor world random --rooms {rooms} --seed {seed} --door {door:g}")
 
 
 @world_app.command("import")
+@writes(files=("out",))
 def import_world(
     map_yaml: Annotated[
         Path, typer.Argument(help="ROS map_server .yaml (beside its image) or MRPT .gridmap[.gz].")
@@ -77,6 +102,7 @@ def import_world(
     occupancy grid (.gridmap, .gridmap.gz) as wall segments."""
     from sensorimotor.sim.rosmap import import_mrpt_map, import_ros_map
 
+    _check_name(name)
     _check_toml(out)
     mrpt = map_yaml.name.lower().endswith((".gridmap", ".gridmap.gz"))
     world, comment = (import_mrpt_map if mrpt else import_ros_map)(map_yaml, name)

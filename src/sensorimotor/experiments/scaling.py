@@ -24,7 +24,6 @@ unknown (rows of 10 worlds; training reads readings and commands alone).
 
 from __future__ import annotations
 
-import json
 import shutil
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
@@ -35,7 +34,7 @@ import numpy as np
 from sensorimotor.analysis.analyze import with_raw
 from sensorimotor.errors import InputError
 from sensorimotor.experiments.scaling_report import plot_errors, section, verdicts
-from sensorimotor.files import file_hash, read_json, write_json_atomic
+from sensorimotor.files import file_hash, read_json, read_json_if_any, write_json_atomic
 from sensorimotor.jobs.cache import read_key, stage_key
 from sensorimotor.jobs.workers import Job
 from sensorimotor.learn.models import KINDS
@@ -261,10 +260,7 @@ def _mark(run_dir: str | Path) -> Path:
 
 
 def _trained(run_dir: str, key: str) -> bool:
-    try:
-        mark = json.loads(_mark(run_dir).read_text())
-    except (OSError, ValueError):
-        return False
+    mark = read_json_if_any(_mark(run_dir), "stage record")
     return mark == {"key": key, "done": True} and (Path(run_dir) / "result.json").exists()
 
 

@@ -16,7 +16,9 @@ def stage_key(obj) -> str:
 
 def read_key(path: Path) -> str | None:
     """The ``key`` recorded in the JSON file ``path``; None where there is none to read."""
+    from sensorimotor.files import read_json_if_any
+
     try:
-        return json.loads(path.read_text())["key"]
-    except (OSError, ValueError, KeyError, TypeError):
+        return read_json_if_any(path, "stage record")["key"]
+    except (KeyError, TypeError):
         return None

@@ -13,12 +13,9 @@ import csv
 import io
 import math
 import numbers
-import shutil
 import warnings
 import zipfile
 import zlib
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Protocol
@@ -31,7 +28,7 @@ from sensorimotor.files import (
     check_input,
     check_writable,
     file_hash,
-    folder_lock,
+    lock_folder,
     read_json,
     write_json_atomic,
 )
@@ -330,24 +327,10 @@ def check_run_dir(out: Path, meta: dict, resume: bool) -> None:
             check_archive(out / "checkpoint.pt")  # before the run's config is rewritten
 
 
-@contextmanager
-def lock_run_dir(out: Path) -> Iterator[None]:
+def lock_run_dir(out: Path):
     """Hold ``out``'s lock while a process trains into it (a second process is refused at
     once); a folder made here and left empty by a refusal is removed again."""
-    if out.exists() and not out.is_dir():
-        raise InputError(f"{out}: exists and is not a folder")
-    made = not out.exists()
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise InputError(f"{out}: cannot create run folder ({err.strerror})") from None
-    try:
-        with folder_lock(out, "run folder"):
-            yield
-    except BaseException:
-        if made and all(p.name == ".lock" for p in out.iterdir()):
-            shutil.rmtree(out, ignore_errors=True)
-        raise
+    return lock_folder(out, "run folder")
 
 
 def setting_changes(a: dict, b: dict, ignore: tuple[str, ...] = ()) -> str:

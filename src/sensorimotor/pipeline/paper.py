@@ -12,7 +12,6 @@ a ``Reproduction``; ``sensorimotor.reproduce`` adds the experiments and the repo
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Callable, Sequence
 from contextlib import contextmanager
@@ -20,7 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from sensorimotor.errors import InputError
-from sensorimotor.files import file_hash, write_json_atomic
+from sensorimotor.files import file_hash, read_json, write_json_atomic
 from sensorimotor.jobs.cache import read_key, stage_key
 from sensorimotor.jobs.workers import Job, raise_first
 from sensorimotor.learn.models import KINDS, REC_SM
@@ -363,7 +362,7 @@ def run_paper(rep: Reproduction, run_jobs: Callable, log: Callable[[str], None])
             name = rep.run_name(world, model, seed)
             job = _eval_job_of(rep, world, model, seed, data_hash)
             if job is None:
-                results[name] = json.loads(_eval_path(rep, name).read_text())["result"]
+                results[name] = read_json(_eval_path(rep, name), "evaluation")["result"]
             else:
                 jobs.append(job)
         _count(rep, "evaluate", len(jobs), len(rep.runs) - len(jobs), overlapped)
@@ -389,5 +388,5 @@ def run_paper(rep: Reproduction, run_jobs: Callable, log: Callable[[str], None])
         _, failures = run_jobs(jobs, workers, progress, _Tally(log, len(jobs)))
         raise_first(failures, "run ", log)
         for name, _run, _data, fit, dest in targets:
-            metrics = json.loads((Path(dest) / "metrics.json").read_text())
+            metrics = read_json(Path(dest) / "metrics.json", "analysis metrics")
             (rep.transfers if fit else rep.analyses)[name] = metrics

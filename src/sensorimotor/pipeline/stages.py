@@ -5,13 +5,12 @@ beside the cache key it was made with."""
 
 from __future__ import annotations
 
-import json
 import shutil
 from dataclasses import asdict
 from pathlib import Path
 
 from sensorimotor.errors import InputError
-from sensorimotor.files import write_json_atomic
+from sensorimotor.files import read_json_if_any, write_json_atomic
 from sensorimotor.jobs.cache import stage_key
 from sensorimotor.jobs.workers import send_progress
 from sensorimotor.version import __version__
@@ -37,9 +36,8 @@ def run_matches(run: Path, data_sha: str, config: dict) -> bool:
     from sensorimotor.learn.config import TrainConfig
     from sensorimotor.learn.models import ModelConfig
 
-    try:
-        made = json.loads((run / "config.json").read_text())
-    except (OSError, ValueError):
+    made = read_json_if_any(run / "config.json", "run config")
+    if made is None:
         return False
     train = TrainConfig(**config)
     want = {k: v for k, v in asdict(train).items() if k != "device"}

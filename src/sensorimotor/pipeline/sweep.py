@@ -71,6 +71,7 @@ FIXED += SIZES
 RANGES = ("log_uniform", "uniform", "int_uniform")
 ASHA = {"grace_period": 1, "reduction_factor": 2}
 NO_SIGINT_HANDLER = "TUNE_DISABLE_SIGINT_HANDLER"
+MAX_TRIALS = 1_000  # trials of a sweep (each a training: hours each at the paper's size)
 MAX_T = 100  # ASHA's horizon in epochs when the sweep sets no max_epochs
 
 
@@ -156,6 +157,12 @@ def read_sweep(path: str | Path) -> Sweep:
         extra = sorted({"trials", "seed"} & set(raw))
         if extra:
             raise InputError(f'{path}: {extra[0]} is for search = "random"')
+        count = math.prod(len(v) for v in space.values())  # before the grid is built
+        if count > MAX_TRIALS:
+            raise InputError(
+                f"{path}: the grid holds {count:,} trials, more than {MAX_TRIALS:,}: search "
+                'fewer values, or draw trials with search = "random"'
+            )
         points = [
             dict(zip(space, combo, strict=True)) for combo in itertools.product(*space.values())
         ]
@@ -224,6 +231,8 @@ def _draw(path: Path, raw: dict, space: dict) -> list[dict]:
     for key, value, least in (("trials", n, 1), ("seed", seed, 0)):
         if isinstance(value, bool) or not isinstance(value, int) or value < least:
             raise InputError(f"{path}: {key} must be an integer >= {least}, got {value!r}")
+    if n > MAX_TRIALS:
+        raise InputError(f"{path}: trials must be at most {MAX_TRIALS:,}, got {n:,}")
     rng = np.random.default_rng(seed)
     points = []
     for _ in range(n):

@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import math
 import shlex
 from pathlib import Path
 
+from sensorimotor.files import MAX_TEXT_BYTES, check_input, read_json_if_any
 from sensorimotor.learn.config import TrainConfig
 from sensorimotor.learn.models import ModelConfig
 from sensorimotor.learn.runs import SETTABLE
@@ -26,14 +26,17 @@ def trial_row(name: str, values: dict, run: Path, ended: str, failed: bool) -> d
     epoch), at which epoch, its epochs, and how it stopped: the run's own reason, ``failed``,
     or ``ended`` (no result.json: ended by ASHA, or unfinished)."""
     errors = []
+    history = run / "history.csv"
+    if history.exists() or history.is_symlink():
+        check_input(history, "training history", MAX_TEXT_BYTES)  # a FIFO: refused, not read
+        try:
+            with open(history, newline="") as f:
+                errors = [float(r["val_error"]) for r in csv.DictReader(f)]
+        except (OSError, KeyError, ValueError):
+            pass
     try:
-        with open(run / "history.csv", newline="") as f:
-            errors = [float(r["val_error"]) for r in csv.DictReader(f)]
-    except (OSError, KeyError, ValueError):
-        pass
-    try:
-        stopped = json.loads((run / "result.json").read_text())["stopped"]
-    except (OSError, ValueError, KeyError, TypeError):
+        stopped = read_json_if_any(run / "result.json", "run result")["stopped"]
+    except (KeyError, TypeError):
         stopped = ended
     finite = [i for i, e in enumerate(errors) if math.isfinite(e)]  # a diverged epoch: NaN
     best = min(finite, key=errors.__getitem__) if finite else None

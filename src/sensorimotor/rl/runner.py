@@ -277,11 +277,11 @@ def check_inputs(config: RLConfig) -> None:
     """Every InputError the grid can meet, before any agent trains: trained feature sets
     without a runs folder, a world that does not load or cannot hold the task, a missing or
     unfitting encoder run."""
+    for world in (config.world, *config.transfer):
+        LaserTaskEnv(config.task, load_world(world))
     missing = needs_runs(config.features)
     if missing and config.runs is None:
         raise no_runs_error(missing)
-    for world in (config.world, *config.transfer):
-        LaserTaskEnv(config.task, load_world(world))
     for features in config.features:
         for seed in range(config.seeds):
             load_encoder(features, _runs(config), config.trained_on, seed)

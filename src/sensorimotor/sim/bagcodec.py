@@ -191,12 +191,28 @@ def decode_odometry(raws: list, ros1: bool, slow) -> Poses:
                 msg = slow(i)
                 s, p, q = msg.header.stamp, msg.pose.pose.position, msg.pose.pose.orientation
                 out.stamp[i] = s.sec * 1_000_000_000 + s.nanosec
-                out.pose[i] = (p.x, p.y, yaw(q.x, q.y, q.z, q.w))
+                out.pose[i] = (p.x, p.y, unit_yaw(q.x, q.y, q.z, q.w))
             continue
         out.stamp[rows] = _u32(a, 4) * 1_000_000_000 + _u32(a, 8)
         f = _f(a, pos, 7, 8)  # (K, 7) x, y, z, qx, qy, qz, qw
-        out.pose[rows] = np.stack([f[:, 0], f[:, 1], yaw(f[:, 3], f[:, 4], f[:, 5], f[:, 6])], 1)
+        heading = unit_yaw(f[:, 3], f[:, 4], f[:, 5], f[:, 6])
+        out.pose[rows] = np.stack([f[:, 0], f[:, 1], heading], 1)
     return out
+
+
+QUATERNION_TOLERANCE = 0.01  # |x^2 + y^2 + z^2 + w^2 - 1| of an orientation taken as a rotation
+
+
+def unit_yaw(x, y, z, w):
+    """``yaw``, or NaN for a quaternion that is not of unit norm (0, 0, 0, 0 says nothing of a
+    heading: the importer drops the message and counts it)."""
+    with np.errstate(all="ignore"):  # 1e300 squared: inf, not a unit norm
+        norm = np.square(np.asarray(x, dtype=np.float64)) + np.square(y) + np.square(z)
+        bad = ~(np.abs(norm + np.square(w) - 1) <= QUATERNION_TOLERANCE)
+        heading = yaw(x, y, z, w)
+    if np.ndim(x) == 0:
+        return math.nan if bad else heading
+    return np.where(bad, np.nan, heading)
 
 
 def yaw(x, y, z, w):

@@ -18,12 +18,13 @@ import numba
 import numpy as np
 
 from sensorimotor.errors import InputError
+from sensorimotor.sim import MAX_RAYS as _MAX_RAYS
 from sensorimotor.sim.grid import WallGrid, cast_grid, for_rays
 from sensorimotor.sim.world import START_CLEARANCE, World, free_start_cells, point_segment_distance
 
 SENSOR_ANGLES = np.array([-0.6, -0.3, 0.0, 0.3, 0.6])  # rad from the heading; index 0 rightmost
 MAX_RANGE = 10.0  # units; a ray that hits nothing nearer reads exactly this
-MAX_RAYS = 1024  # rays a layout may have
+MAX_RAYS = _MAX_RAYS  # rays a layout may have
 TURN_THRESHOLD = 1.0  # units; the behaviour turns around when a reading is below this
 EPS = 1e-12
 
@@ -143,7 +144,10 @@ def cast_rays(segments, x, y, heading, angles, max_range, out):
 
 @numba.njit(cache=True)
 def wrap_angle(a):
-    """The same angle in (-pi, pi]."""
+    """The same angle in (-pi, pi]: a turn or two subtracted as always (the same bits), an
+    angle further out (a huge motor noise) reduced at once, never by a loop of turns."""
+    if not -3.0 * math.pi < a <= 3.0 * math.pi:
+        a = a % (2.0 * math.pi)  # exact, in [0, 2 pi); inf and nan give nan
     while a > math.pi:
         a -= 2.0 * math.pi
     while a <= -math.pi:

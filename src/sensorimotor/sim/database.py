@@ -340,6 +340,7 @@ def _check_in_world(db: Database, world: World | None) -> None:
             raise InputError(f"{path}: {name} of row {row} is out of range ({allowed})")
     if world is not None:
         _check_readings_match_world(db, world)
+    _check_motors_match_poses(db)
 
 
 MAX_STEP = 1_000.0  # units a step may move where the walls are unknown (a recording)
@@ -366,6 +367,43 @@ def _check_readings_match_world(db: Database, world: World) -> None:
             f"({world.name!r}): {off.mean():.0%} of {len(rows):,} checked rows disagree with "
             f"ray casts there (row {row}: read {np.round(db.sensors[row], 2).tolist()}, "
             f"the walls give {np.round(cast[np.argmax(off)], 2).tolist()})"
+        )
+
+
+MOTION_CHECKED = 2_000  # rows whose command is applied again to check that it leads to the next
+MOTION_TOLERANCE = 1e-3  # units and rad: float32 poses of a world of 1,000 units round by 6e-5
+
+
+def _check_motors_match_poses(db: Database) -> None:
+    """Refuse a database the simulator wrote (its format, no ``meta.source``, no motor noise,
+    whose executed commands differ from the recorded ones) whose motors do not move it: the
+    motion from row t to t+1 is the command of row t (``sim.core.apply_motor``), checked on
+    rows spread over the file as the readings are."""
+    meta = db.meta
+    if (
+        meta.get("format") != "sensorimotor-database/1"
+        or "source" in meta
+        or meta.get("motor_noise_std", 0)
+        or len(db) < 2
+    ):
+        return
+    rows = np.unique(np.linspace(0, len(db) - 2, min(len(db) - 1, MOTION_CHECKED)).astype(int))
+    now, nxt = db.poses[rows].astype(np.float64), db.poses[rows + 1].astype(np.float64)
+    d, r = db.motors[rows, 0].astype(np.float64), db.motors[rows, 1].astype(np.float64)
+    x = now[:, 0] + d * np.cos(now[:, 2])
+    y = now[:, 1] + d * np.sin(now[:, 2])
+    turn = np.mod(now[:, 2] + r - nxt[:, 2] + np.pi, 2 * np.pi) - np.pi
+    off = (np.hypot(x - nxt[:, 0], y - nxt[:, 1]) > MOTION_TOLERANCE) | (
+        np.abs(turn) > MOTION_TOLERANCE
+    )
+    if off.any():
+        i = int(np.argmax(off))
+        row = int(rows[i])
+        raise InputError(
+            f"{db.path}: its motors do not move it from one pose to the next, as the simulator's "
+            f"do ({int(off.sum()):,} of {len(rows):,} checked rows; row {row}: command "
+            f"{np.round(db.motors[row], 3).tolist()} from {np.round(now[i], 3).tolist()} "
+            f"gives ({x[i]:.3f}, {y[i]:.3f}), the next pose is {np.round(nxt[i], 3).tolist()})"
         )
 
 

@@ -25,6 +25,33 @@ DOOR = 1.5  # units; default doorway width (the agent is a point; 1.5 > the turn
 MIN_SIDE = 4.0  # units; default smallest room side (a free start needs a 2 x 2 clear square)
 ROOM_AREA = 100.0  # units^2; the default world is about this much per room
 FLOOD_RESOLUTION = 0.25  # units; the flood fill's cell
+# what a plan costs grows as rooms^2 x flood-fill cells (measured: 40 rooms of the default
+# side, 64, take 5 s; 40 rooms at side 200, 41 s; 80 rooms, 40 s): both bounded, and their
+# product, to about 5 s
+MAX_ROOMS = 40
+MAX_SIZE = 200.0  # units; a side
+MAX_PLAN_WORK = 110_000_000  # rooms^2 x cells: 40 rooms of the default side, 104,857,600
+
+
+def check_plan_work(rooms: int, size: float | tuple[float, float] | None) -> None:
+    """InputError, before any work, for a plan that would take more than about 5 s."""
+    if isinstance(rooms, bool) or not isinstance(rooms, int) or not 1 <= rooms <= MAX_ROOMS:
+        raise InputError(f"--rooms must be an integer from 1 to {MAX_ROOMS}, got {rooms!r}")
+    if size is None:
+        side = float(math.ceil(math.sqrt(rooms * ROOM_AREA)))
+        size = (side, side)
+    elif not isinstance(size, tuple):
+        size = (size, size)
+    width, height = (float(v) for v in size)
+    if not all(math.isfinite(v) and 0 < v <= MAX_SIZE for v in (width, height)):
+        raise InputError(f"--size must be positive and at most {MAX_SIZE:g}, got {size!r}")
+    work = rooms**2 * (width / FLOOD_RESOLUTION) * (height / FLOOD_RESOLUTION)
+    if work > MAX_PLAN_WORK:
+        raise InputError(
+            f"--rooms {rooms} in a {width:g} x {height:g} world is too much work (rooms^2 x "
+            f"cells of {FLOOD_RESOLUTION:g} = {work:,.0f}, at most {MAX_PLAN_WORK:,}: about "
+            "5 s); give fewer rooms or a smaller --size"
+        )
 
 
 @dataclass(frozen=True)
@@ -46,8 +73,7 @@ def random_plan(
     """A floor plan of ``rooms`` rectangular rooms named ``room0``, ``room1``, ... (see the
     module docstring); ``size`` (width, height) defaults to a square of about ``ROOM_AREA``
     per room. InputError when ``rooms`` rooms do not fit, or a setting is out of range."""
-    if isinstance(rooms, bool) or not isinstance(rooms, int) or rooms < 1:
-        raise InputError(f"--rooms must be a positive integer, got {rooms!r}")
+    check_plan_work(rooms, size)
     if not (math.isfinite(min_side) and min_side > 2 * START_CLEARANCE):
         raise InputError(f"the smallest room side must exceed {2 * START_CLEARANCE:g}")
     if not (math.isfinite(door) and 0 < door <= min_side - 2 * START_CLEARANCE):

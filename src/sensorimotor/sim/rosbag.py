@@ -21,6 +21,10 @@ How the rows are made:
   A scan whose angles do not reach a ray of the layout is refused (choose another ``--fov``).
 - **Poses** (``nav_msgs/Odometry``): x, y and the yaw of the orientation, interpolated linearly
   (the yaw unwrapped) at each row's scan stamp, in the odometry frame (``meta.source.frames``).
+  A message whose orientation is not a unit quaternion (``(0, 0, 0, 0)``), or whose pose is not
+  finite in float32 (``1e300``), is dropped (counted: ``odom_bad_quaternion``,
+  ``odom_not_finite``), and so is one that leaves the path faster than ``MAX_SPEED`` and comes
+  back (``odom_jumps``).
   A row outside the odometry's time span, or between two odometry messages further apart than
   ``MAX_ODOM_GAP_S``, is dropped (counted). The laser is taken to sit at the robot's origin.
   With ``frame`` (``map``, say), the transform from it to the odometry frame on ``/tf`` (or
@@ -33,7 +37,9 @@ How the rows are made:
   which ``(d, r)`` cannot express, is dropped and its largest value reported), ``r`` the change
   of heading in (-pi, pi]. With ``cmd`` (``geometry_msgs/Twist`` or ``TwistStamped``): the last
   command sent at or before the row's scan, ``(linear.x * dt, angular.z * dt)`` with ``dt`` the
-  time to the next row (rows before the first command are dropped, counted).
+  time to the next row (rows before the first command are dropped, counted). A row whose
+  command moves faster than ``MAX_SPEED`` or turns faster than ``MAX_TURN_RATE`` for the time
+  to the next row (an odometry jump, a ``/cmd_vel`` of 1e30) is dropped (``rows_too_fast``).
 
 The world is unknown unless one is given: ``meta.world`` is then only a name (the bag's), and
 the stages that need walls say so (``Database.has_walls``). With ``world``, the poses must be in
@@ -50,6 +56,7 @@ from pathlib import Path
 import numpy as np
 
 from sensorimotor.errors import InputError
+from sensorimotor.files import check_input, check_input_folder
 from sensorimotor.sim import bagcodec
 from sensorimotor.sim.bagcodec import CMD_TYPES, ODOM_TYPES, SCAN_TYPES, rosbags_reader
 from sensorimotor.sim.core import DEFAULT_LAYOUT, MAX_RAYS, SensorLayout, spread_layout
@@ -61,6 +68,13 @@ MAX_BACK_JUMP_S = 1.0  # s: a stamp this far before an earlier one is a clock ju
 MAX_ODOM_GAP_S = 1.0  # s: no pose is interpolated between odometry messages further apart
 MAX_TF_GAP_S = 5.0  # s: the same for /tf's transform to the odometry frame (published slower)
 TF_TOPICS = ("/tf", "/tf_static")
+# the physically possible, for the rows' rate: no robot recorded with a 2-D laser moves 50 m/s
+# or turns 100 rad/s (16 turns a second); the simulator's agent, written as a bag at 10 Hz,
+# moves at most 10 units/s and turns 35 rad/s
+MAX_SPEED = 50.0  # units (m)/s
+MAX_TURN_RATE = 100.0  # rad/s
+MOTION_SLACK = 0.01  # units or rad a row may move beyond them (same-stamp jitter)
+MAX_BAG_BYTES = 1 << 40  # a bag file: 1 TB, far beyond a recording that fits in memory
 
 
 @dataclass(frozen=True)
@@ -98,6 +112,23 @@ def bag_format(path: Path) -> str:
         files = {p.suffix for p in path.iterdir()}
         return "rosbag2/mcap" if ".mcap" in files else "rosbag2/sqlite3"
     return "rosbag2/mcap" if path.suffix == ".mcap" else "rosbag1"
+
+
+def check_bag(bag: str | Path) -> Path:
+    """The bag through the input door (``files``): a ROS 1 ``.bag`` or an ``.mcap`` is a
+    regular file, a ROS 2 bag folder holds only regular files (its ``.db3`` or ``.mcap`` and
+    ``metadata.yaml``), each at most ``MAX_BAG_BYTES``: a FIFO, a device, a link to
+    ``/dev/zero`` is refused before rosbags opens anything."""
+    bag = Path(bag)
+    try:
+        is_dir = bag.is_dir()
+    except OSError:
+        is_dir = False
+    if is_dir:
+        check_input_folder(bag, "ROS 2 bag", MAX_BAG_BYTES)
+    else:
+        check_input(bag, "ROS bag", MAX_BAG_BYTES)
+    return bag
 
 
 CHUNK = 50_000  # messages of a topic decoded at once (bounds the raw bytes held)
@@ -321,9 +352,7 @@ def import_bag(
     the bag, its topics and frames, and what was dropped. InputError, one line, for a bag that
     cannot be made into one. ``decoder="rosbags"`` decodes every message with rosbags (the
     reference ``bagcodec``'s bulk reading is checked against; slower, the same database)."""
-    bag = Path(bag)
-    if not bag.exists():
-        raise InputError(f"{bag}: bag not found")
+    bag = check_bag(bag)
     if not 1 <= len(layout.angles) <= MAX_RAYS:
         raise InputError(f"--rays must be 1 to {MAX_RAYS:,}, got {len(layout.angles)}")
     if rate is not None and not (math.isfinite(rate) and rate > 0):
@@ -385,8 +414,9 @@ def import_bag(
     counts["rows_without_next"] = int((jumps > 1).sum()) + 1  # before a gap, and the last
 
     odom = _concat(streams["odom"].values, bagcodec.Poses)
-    to, oo = _clock(bag, "odom", odom.stamp, streams["odom"].recv, counts, clocks)
-    to, odom = seconds(to[oo]), odom.pose[oo]  # (O,), (O, 3)
+    odom, odom_recv = _valid_odometry(bag, odom, streams["odom"].recv, counts)
+    to, oo = _clock(bag, "odom", odom.stamp, odom_recv, counts, clocks)
+    to, odom = _drop_jumps(seconds(to[oo]), odom.pose[oo], counts)  # (O,), (O, 3)
     pose, covered = _interpolate(to, odom, t)  # (K, 3), (K,) bool
     has_next = np.r_[jumps == 1, False]
     ok = has_next & covered & np.r_[covered[1:], False]
@@ -412,6 +442,12 @@ def import_bag(
         j = np.maximum(j, 0)
         d, r = cmd[j, 0] * dt_next, cmd[j, 1] * dt_next
         how = f"{topics.cmd}: d = linear.x * dt, r = angular.z * dt, dt to the next row"
+    with np.errstate(invalid="ignore"):
+        possible = (np.abs(d) <= MAX_SPEED * dt_next + MOTION_SLACK) & (
+            np.abs(r) <= MAX_TURN_RATE * dt_next + MOTION_SLACK
+        )
+    counts["rows_too_fast"] = int((ok & ~possible).sum())
+    ok &= possible
     if topics.frame is not None:  # the commands stay odometry's: the motion executed
         pose, known = _to_frame(bag, topics.frame, frames["odom"], tf, t, pose, seconds)
         counts["rows_without_transform"] = int((ok & ~known).sum())
@@ -427,8 +463,9 @@ def import_bag(
     motors = np.stack([d, r], axis=1)[rows]
     out_pose, out_sensors = pose[rows], sensors[rows]
     arrays = [out_sensors, motors, out_pose]
-    if not all(np.isfinite(a).all() for a in arrays):
-        raise InputError(f"{bag}: odometry or commands hold NaN or inf")
+    with np.errstate(over="ignore"):
+        if not all(np.isfinite(a.astype(np.float32)).all() for a in arrays):
+            raise InputError(f"{bag}: odometry or commands hold NaN or inf (in float32)")
     if world is not None:
         check_inside(bag, world, out_pose)
     counts["rows"] = len(rows)
@@ -462,6 +499,35 @@ def import_bag(
         "version": __version__,
     }
     return Database(*(a.astype(np.float32) for a in arrays), meta=meta)
+
+
+def _valid_odometry(bag: Path, odom, recv: list, counts: dict) -> tuple:
+    """The odometry messages with a unit quaternion and a pose finite in float32, and their
+    receive times; the others dropped and counted."""
+    pose = odom.pose
+    with np.errstate(over="ignore", invalid="ignore"):
+        finite = np.isfinite(pose.astype(np.float32)).all(axis=1)
+    unit = ~np.isnan(pose[:, 2])  # bagcodec.unit_yaw: NaN for a quaternion not of unit norm
+    counts["odom_bad_quaternion"] = int((~unit).sum())
+    counts["odom_not_finite"] = int((unit & ~finite).sum())
+    if not finite.any():
+        raise InputError(
+            f"{bag}: no odometry message has a finite pose and a unit quaternion "
+            f"({counts['odom_bad_quaternion']:,} quaternions not of unit norm)"
+        )
+    return bagcodec.Poses(odom.stamp[finite], pose[finite]), np.asarray(recv)[finite]
+
+
+def _drop_jumps(to: np.ndarray, pose: np.ndarray, counts: dict) -> tuple:
+    """Odometry without the messages that leave the path faster than ``MAX_SPEED`` and come
+    back (an outlier, counted as ``odom_jumps``)."""
+    out = np.zeros(len(to), dtype=bool)
+    if len(to) >= 3:
+        step = np.hypot(np.diff(pose[:, 0]), np.diff(pose[:, 1]))
+        fast = step > MAX_SPEED * np.diff(to) + MOTION_SLACK
+        out[1:-1] = fast[:-1] & fast[1:]
+    counts["odom_jumps"] = int(out.sum())
+    return to[~out], pose[~out]
 
 
 def _interpolate(to, odom: np.ndarray, t, gap: float = MAX_ODOM_GAP_S) -> tuple:

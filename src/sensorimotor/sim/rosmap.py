@@ -41,14 +41,28 @@ NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 MAX_IMAGE_BYTES = 1 << 30  # a map image: a building at 1 cm a pixel is far less
 FREE_THRESH = 0.196  # an MRPT grid's cell is free below this occupancy (map_server's default)
 SPECK_CELLS = 2  # blocked specks of at most this many cells inside the free region: noise
+# pixels of a map image, read from its header before it is decoded: 5,000 x 5,000 (a 250 m
+# building at 5 cm a pixel) holds in well under 1 GB as the grids the import makes of it
+MAX_IMAGE_PIXELS = 25_000_000
 
 
-def _value(text: str):
+def _check_pixels(cols: int, rows: int, path: Path) -> None:
+    if cols * rows > MAX_IMAGE_PIXELS:
+        raise InputError(
+            f"{path}: {cols:,} x {rows:,} pixels, more than the {MAX_IMAGE_PIXELS:,} a map image "
+            "may have (crop it or lower its resolution)"
+        )
+
+
+def _value(text: str, where: str):
     text = text.strip()
     if len(text) >= 2 and text[0] == text[-1] and text[0] in "'\"":
         return text[1:-1]
     if text.startswith("[") and text.endswith("]"):
-        return [_value(v) for v in text[1:-1].split(",") if v.strip()]
+        items = [v for v in text[1:-1].split(",") if v.strip()]
+        if any("[" in v or "]" in v for v in items):  # map_server's lists are flat
+            raise InputError(f"{where}: a list within a list (map_server's lists hold numbers)")
+        return [_value(v, where) for v in items]
     if NUMBER.fullmatch(text):
         return float(text)
     return text
@@ -71,7 +85,7 @@ def read_map_yaml(path: str | Path) -> dict:
         if not sep or not value.strip() or line[0].isspace():
             raise InputError(f"{path}:{number}: expected 'key: value', got {line.strip()!r}")
         if key in KEYS:
-            out[key] = _value(value)
+            out[key] = _value(value, f"{path}:{number}")
     for key in ("image", "resolution"):
         if key not in out:
             raise InputError(f"{path}: missing key {key!r}")
@@ -92,6 +106,10 @@ def read_image(path: Path) -> np.ndarray:
         return _read_pgm(data, path)
     if data[:8] == b"\x89PNG\r\n\x1a\n":
         from matplotlib.image import imread
+
+        if len(data) < 24 or data[12:16] != b"IHDR":
+            raise InputError(f"{path}: not a readable PNG (no IHDR header)")
+        _check_pixels(int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big"), path)
 
         try:
             img = np.asarray(imread(path), dtype=np.float64)  # floats in [0, 1]
@@ -119,6 +137,7 @@ def _read_pgm(data: bytes, path: Path) -> np.ndarray:
         raise InputError(f"{path}: bad PGM header {tokens!r}") from None
     if not (cols > 0 and rows > 0 and 0 < maxval < 65536):
         raise InputError(f"{path}: bad PGM header (size {cols} x {rows}, maxval {maxval})")
+    _check_pixels(cols, rows, path)
     if data[:2] == b"P5":
         dtype = np.dtype(">u2") if maxval > 255 else np.dtype("u1")
         body = data[pos + 1 : pos + 1 + rows * cols * dtype.itemsize]

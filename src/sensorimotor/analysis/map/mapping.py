@@ -57,7 +57,13 @@ from sensorimotor.analysis.map.chmm import (
     log_likelihood,
 )
 from sensorimotor.analysis.map.context import CONTEXT_TAU, MAX_CONTEXTS, N_CONTEXTS, slow_context
-from sensorimotor.analysis.map.planning import GOAL_RADIUS, N_PAIRS, encoder_of, planning
+from sensorimotor.analysis.map.planning import (
+    GOAL_RADIUS,
+    MAX_PAIRS,
+    N_PAIRS,
+    encoder_of,
+    planning,
+)
 from sensorimotor.errors import InputError
 from sensorimotor.files import atomic_path, write_text_atomic
 from sensorimotor.sim.database import Database
@@ -404,9 +410,9 @@ def map_files(
 
     check_settings(clusters, clones, contexts)
     nx = _networkx()
+    if not 0 <= pairs <= MAX_PAIRS:  # before the inputs are read
+        raise InputError(f"--pairs must be from 0 to {MAX_PAIRS:,}, got {pairs}")
     run, db, fit_db, out = load_inputs(run, data, fit_data, out, OUTPUTS)
-    if pairs < 0:
-        raise InputError(f"--pairs must be at least 0, got {pairs}")
     train, test, kmeans = cell_steps(run, db, clusters, seed, fit_db)
     if db.has_walls:
         world = db.world

@@ -39,6 +39,7 @@ from sensorimotor.sim.core import (
 )
 from sensorimotor.sim.world import World
 
+MAX_PAIRS = 3_000  # 10 x N_PAIRS: planning them takes minutes, not hours (cli.app.MAX_PAIRS)
 N_PAIRS = 300  # start/goal pairs: 2 binomial SEs of a 5-seed mean lead (0.035) < its margin
 BUDGET = 400  # steps an episode may take
 GOAL_RADIUS = 4.0
