@@ -386,7 +386,7 @@ def _flag(param) -> str | None:
 
 def _outputs(cmd) -> set[str]:
     w = _writes(cmd) or {}
-    return {w["folder"]} - {None} | set(w.get("files", ()))
+    return {w.get("folder")} - {None} | set(w.get("files", ()))
 
 
 def _input_cases():
@@ -451,11 +451,18 @@ def baseline(trained, square_db_path, tmp_path_factory):
         "run_dir": trained,
         "run_dirs": trained,
         "bag": tmp_path_factory.mktemp("none") / "no.bag",  # read after --world
+        "log": tmp_path_factory.mktemp("none") / "no.rawlog",  # read after --world
         "spec": tmp_path_factory.mktemp("none") / "no.toml",  # read after the lock
     }
 
 
-SUFFIX = {"generate": ".npz", "import-bag": ".npz", "random": ".toml", "import": ".toml"}
+SUFFIX = {
+    "generate": ".npz",
+    "import-bag": ".npz",
+    "import-rawlog": ".npz",
+    "random": ".toml",
+    "import": ".toml",
+}
 
 
 def _argv(words, cmd, values: dict, tmp_path, override: dict) -> list:
@@ -596,7 +603,7 @@ def test_help_states_every_bound(capsys):
     assert "1<=x<=40" in out
     assert "0<=x<=200" in out
     assert run(["sweep", "--help"]) == 0
-    assert "[train], [space], [asha]" in capsys.readouterr().out
+    assert "[train], [space], [asha]" in " ".join(capsys.readouterr().out.split())
 
 
 # the second pass's families, each by its case ----------------------------------------------------

@@ -130,6 +130,7 @@ MAX_FOV = 6.2832  # rad: a full turn (2 pi, checked exactly by the layout)
 MAX_NOISE = 100.0  # std of the reading noise: 10 x the paper's range
 MAX_MOTOR_NOISE = 10.0  # std of the motor noise: 10 x the longest step
 MAX_RATE = 10_000.0  # Hz of a recording's rows: 250 x a fast laser's
+MAX_SCALE = 1_000.0  # units a metre of a recording: millimetres
 MAX_VIEW = 10_000.0  # units around the agent in a drawing
 MAX_SEEDS = 100  # seeds of a grid (the paper: 5)
 MAX_WORKERS = 1_024  # jobs at a time

@@ -15,6 +15,7 @@ from sensorimotor.cli.app import (
     MAX_NOISE,
     MAX_RANGE,
     MAX_RATE,
+    MAX_SCALE,
     MAX_STEPS,
     MAX_VIEW,
     PlotOut,
@@ -182,16 +183,27 @@ def import_bag(
 
 
 @app.command("import-rawlog")
+@writes(files=("out",))
 def import_rawlog(
     log: Annotated[Path, typer.Argument(help="MRPT rawlog (.rawlog, gzip or plain).")],
     out: Annotated[Path, typer.Option(help="Database (.npz) to write.")],
     sensor: Annotated[
         str | None, typer.Option(help="Sensor label of the scans (default: the first scan's).")
     ] = None,
-    rays: Annotated[int, typer.Option(help="Lasers (the encoders read 5).")] = 5,
-    fov: Annotated[float, typer.Option(help="Angle from first to last ray (rad).")] = 1.2,
-    range_: Annotated[float, typer.Option("--range", help="Reading of no return (units).")] = 10.0,
-    scale: Annotated[float, typer.Option(help="Units a metre (1: a unit is a metre).")] = 1.0,
+    rays: Annotated[
+        int, typer.Option(min=1, max=MAX_RAYS, help="Lasers (the encoders read 5).")
+    ] = 5,
+    fov: Annotated[
+        float, typer.Option(min=0, max=MAX_FOV, help="Angle from first to last ray (rad).")
+    ] = 1.2,
+    range_: Annotated[
+        float,
+        typer.Option("--range", min=0, max=MAX_RANGE, help="Reading of no return (units)."),
+    ] = 10.0,
+    scale: Annotated[
+        float,
+        typer.Option(min=1e-6, max=MAX_SCALE, help="Units a metre (1: a unit is a metre)."),
+    ] = 1.0,
     world: Annotated[
         str | None, typer.Option(help="World of the poses' frame (odometry from (0, 0, 0)).")
     ] = None,
