@@ -100,7 +100,7 @@ def reproduce(
 @app.command()
 @writes(folder="out")
 def sweep(
-    spec: Annotated[Path, typer.Argument(help="Sweep file: data, \\[train], \\[space], \\[asha].")],
+    spec: Annotated[Path, typer.Argument(help="Sweep file: data, [train], [space], [asha].")],
     out: Annotated[Path, typer.Option(help="Sweep folder: runs/trial_NNN, sweep.csv/.md/.png.")],
     backend: BackendOpt = "local",
     address: AddressOpt = None,
