@@ -143,25 +143,32 @@ def generate(
     )
 
 
+# the options of a recording's import (import-bag, import-rawlog): the rays kept of each scan
+RecordedOut = Annotated[Path, typer.Option(help="Database (.npz) to write.")]
+RecordedRays = Annotated[
+    int, typer.Option(min=1, max=MAX_RAYS, help="Lasers (the encoders read 5).")
+]
+RecordedFov = Annotated[
+    float, typer.Option(min=0, max=MAX_FOV, help="Angle from first to last ray (rad).")
+]
+RecordedRange = Annotated[
+    float, typer.Option("--range", min=0, max=MAX_RANGE, help="Reading of no return (units).")
+]
+
+
 @app.command("import-bag")
 @writes(files=("out",))
 def import_bag(
     bag: Annotated[Path, typer.Argument(help="ROS 1 .bag, ROS 2 bag folder or .mcap file.")],
-    out: Annotated[Path, typer.Option(help="Database (.npz) to write.")],
+    out: RecordedOut,
     scan: Annotated[str, typer.Option(help="sensor_msgs/LaserScan topic.")] = "/scan",
     odom: Annotated[str, typer.Option(help="nav_msgs/Odometry topic (the poses).")] = "/odom",
     cmd: Annotated[
         str | None, typer.Option(help="Twist topic of the commands (default: odometry's motion).")
     ] = None,
-    rays: Annotated[
-        int, typer.Option(min=1, max=MAX_RAYS, help="Lasers (the encoders read 5).")
-    ] = 5,
-    fov: Annotated[
-        float, typer.Option(min=0, max=MAX_FOV, help="Angle from first to last ray (rad).")
-    ] = 1.2,
-    range_: Annotated[
-        float, typer.Option("--range", min=0, max=MAX_RANGE, help="Reading of no return.")
-    ] = 10.0,
+    rays: RecordedRays = 5,
+    fov: RecordedFov = 1.2,
+    range_: RecordedRange = 10.0,
     rate: Annotated[
         float | None, typer.Option(min=0, max=MAX_RATE, help="Rows/s (default: the scans').")
     ] = None,
@@ -186,20 +193,13 @@ def import_bag(
 @writes(files=("out",))
 def import_rawlog(
     log: Annotated[Path, typer.Argument(help="MRPT rawlog (.rawlog, gzip or plain).")],
-    out: Annotated[Path, typer.Option(help="Database (.npz) to write.")],
+    out: RecordedOut,
     sensor: Annotated[
         str | None, typer.Option(help="Sensor label of the scans (default: the first scan's).")
     ] = None,
-    rays: Annotated[
-        int, typer.Option(min=1, max=MAX_RAYS, help="Lasers (the encoders read 5).")
-    ] = 5,
-    fov: Annotated[
-        float, typer.Option(min=0, max=MAX_FOV, help="Angle from first to last ray (rad).")
-    ] = 1.2,
-    range_: Annotated[
-        float,
-        typer.Option("--range", min=0, max=MAX_RANGE, help="Reading of no return (units)."),
-    ] = 10.0,
+    rays: RecordedRays = 5,
+    fov: RecordedFov = 1.2,
+    range_: RecordedRange = 10.0,
     scale: Annotated[
         float,
         typer.Option(min=1e-6, max=MAX_SCALE, help="Units a metre (1: a unit is a metre)."),
