@@ -167,16 +167,21 @@ def write_json_atomic(path: str | Path, obj) -> Path:
     return write_text_atomic(path, strict_json(obj, path) + "\n")
 
 
-def check_input(path: str | Path, what: str, max_bytes: int | None = None) -> Path:
-    """Refuse an input that is missing, a folder, not a regular file (a FIFO or device would
-    hang or never end), or larger than ``max_bytes``; ``what`` names it in the message."""
-    path = Path(path)
+def _mode(path: Path, what: str) -> int:
+    """``path``'s file mode (following links), or one line naming it where it cannot be had."""
     try:
-        mode = path.stat().st_mode
+        return path.stat().st_mode
     except (FileNotFoundError, NotADirectoryError):
         raise InputError(f"{path}: {what} not found") from None
     except OSError as err:
         raise InputError(f"{path}: cannot read {what} ({err.strerror})") from None
+
+
+def check_input(path: str | Path, what: str, max_bytes: int | None = None) -> Path:
+    """Refuse an input that is missing, a folder, not a regular file (a FIFO or device would
+    hang or never end), or larger than ``max_bytes``; ``what`` names it in the message."""
+    path = Path(path)
+    mode = _mode(path, what)
     if stat.S_ISDIR(mode):
         raise InputError(f"{path}: is a folder, not a {what}")
     if not stat.S_ISREG(mode):
@@ -196,12 +201,7 @@ def check_input_folder(
     it through ``check_input`` (a FIFO, a device, a link to one, a folder inside: refused
     before anything is opened); the files, sorted."""
     folder = Path(folder)
-    try:
-        mode = folder.stat().st_mode
-    except (FileNotFoundError, NotADirectoryError):
-        raise InputError(f"{folder}: {what} not found") from None
-    except OSError as err:
-        raise InputError(f"{folder}: cannot read {what} ({err.strerror})") from None
+    mode = _mode(folder, what)
     if not stat.S_ISDIR(mode):
         raise InputError(f"{folder}: is {_kind(mode)}, not a {what} folder")
     try:
