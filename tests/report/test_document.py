@@ -111,7 +111,7 @@ def test_every_claim_is_a_verdict_with_its_threshold_test_and_provenance():
 
 
 def test_the_claims_table_says_where_each_threshold_was_set(tmp_path):
-    blocks, saved = _claims(*fake_inputs())
+    blocks, saved = _claims(fake_claims())
     md = to_markdown(blocks, tmp_path)
     assert "| claim | numbers | verdict | threshold set |" in md
     assert "| set before the data: analysis/claims.py" in md

@@ -409,10 +409,9 @@ def _maps(rep) -> list[Block]:
     return b
 
 
-def _claims(table_one: dict, transfers: dict, numbers: dict) -> tuple[list[Block], list]:
-    """The paper's claims, each with its numbers, verdict and where its threshold was set
-    (from numbers only: Table I, the transfer analyses, the claim numbers)."""
-    verdicts = paper_claims(table_one, transfers, numbers)
+def _claims(verdicts: list) -> tuple[list[Block], list]:
+    """The paper's claims (``claims.paper_claims``), each with its numbers, verdict and where
+    its threshold was set; and the verdicts as strict JSON."""
     b: list[Block] = [h(2, "The paper's claims, tested")]
     rows = [[v.claim, v.numbers, v.word(), f"{v.provenance}: {v.where}"] for v in verdicts]
     b.append(table(["claim", "numbers", "verdict", "threshold set"], rows))
@@ -439,10 +438,11 @@ def write_report(
     out = rep.out
     worlds = list(rep.worlds)  # trained on; every model is tested on all of rep.data
     numbers = claim_numbers(rep.analyses, rep.runs, worlds)
-    claims, verdicts = _claims(rep.table, rep.transfers, numbers)
+    verdicts = paper_claims(rep.table, rep.transfers, numbers)
+    claims, saved = _claims(verdicts)
     b = [
         *_title(argv),
-        *_summary(rep, paper_claims(rep.table, rep.transfers, numbers)),
+        *_summary(rep, verdicts),
         contents(),
         *_table_one(rep),
         *_inside(rep, figs, numbers, worlds),
@@ -458,5 +458,5 @@ def write_report(
     page = to_html(b, "sensorimotor reproduction report")
     write_text_atomic(out / "report.md", md)
     write_text_atomic(out / "report.html", page)
-    write_json_atomic(out / "claims.json", {"numbers": numbers, "claims": verdicts})
+    write_json_atomic(out / "claims.json", {"numbers": numbers, "claims": saved})
     return out / "report.md", out / "report.html"
