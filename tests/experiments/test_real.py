@@ -16,9 +16,11 @@ from sensorimotor import experiments as ex
 from sensorimotor.errors import InputError
 from sensorimotor.experiments import real
 from sensorimotor.jobs.workers import run_jobs
-from sensorimotor.learn.models import KINDS
+from sensorimotor.learn.models import paper_kinds
 from sensorimotor.report.document import to_markdown
 from sensorimotor.sim.mrpt import gridmap_bytes
+
+PAPER = paper_kinds()
 
 
 def _context(tmp_path, square: dict, seen: list, worlds=("square",)):
@@ -47,20 +49,20 @@ def test_the_real_experiment_runs_the_log_and_a_campus_and_keeps_its_results(
     grid.write_bytes(gridmap_bytes(free, 0.5))
     monkeypatch.setattr(real, "GRIDMAP", grid)
     monkeypatch.setattr(real, "CAMPUS_STEPS", {**real.CAMPUS_STEPS, "smoke": 3000})
-    square = {k: tmp_path / "runs" / f"square__{k}__s0" for k in KINDS}
+    square = {k: tmp_path / "runs" / f"square__{k}__s0" for k in PAPER}
     for kind, run in square.items():
         sensorimotor.train(square_db_path, run, sensorimotor.TrainConfig(model=kind, max_epochs=1))
     seen: list[str] = []
     found = ex.run_experiment(_context(tmp_path, square, seen))
     json.dumps(found, allow_nan=False)  # strict JSON
     assert json.loads((tmp_path / "real" / "real.json").read_text()) == found
-    assert len(seen) == 2 + 1 + len(KINDS) + 1 + len(KINDS) + len(KINDS) + 1 + len(KINDS)
+    assert len(seen) == 2 + 1 + len(PAPER) + 1 + len(PAPER) + len(PAPER) + 1 + len(PAPER)
 
     rec = found["real"]
     assert (rec["rows"], rec["test_rows"], rec["scans"]) == (224, 23, 225)
     assert rec["baselines"]["mean"] == pytest.approx(0.2175, abs=1e-4)  # as in docs/results/real
     assert rec["baselines"]["copy_last"] == pytest.approx(0.0993, abs=1e-4)
-    assert set(rec["models"]) == set(KINDS)
+    assert set(rec["models"]) == set(PAPER)
     assert all(math.isfinite(m["error"]) for m in rec["models"].values())
     assert rec["analysis_raw"]["steps"] == 23
     assert rec["analysis_raw"]["walls_known"] is False
@@ -75,7 +77,7 @@ def test_the_real_experiment_runs_the_log_and_a_campus_and_keeps_its_results(
         assert math.isfinite(m["on_real"])
         assert m["epochs"] == 1
     assert camp["baselines"]["copy_last"] < camp["baselines"]["mean"]
-    assert set(camp["analysis"]) == {"raw", *KINDS}
+    assert set(camp["analysis"]) == {"raw", *PAPER}
     assert all(a["steps"] == 300 and not a["walls_known"] for a in camp["analysis"].values())
 
     again: list[str] = []
@@ -88,7 +90,7 @@ def test_the_real_experiment_runs_the_log_and_a_campus_and_keeps_its_results(
     assert "**23 rows**" in md
     assert "none beats copying the last reading" in md  # 1-epoch models do not
     assert "none of the campus-trained models beats copying" in md
-    for kind in KINDS:
+    for kind in PAPER:
         assert f"| {kind} |" in md
     for png in ("real_path.png", "campus_trajectory.png"):
         assert f"(real/{png})" in md

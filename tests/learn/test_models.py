@@ -1,4 +1,5 @@
-"""The four encoders have the paper's layer sizes (section V.A) and the shared interface."""
+"""The four encoders have the paper's layer sizes (section V.A), Rec-SMA its own, and all the
+shared interface."""
 
 import pytest
 import torch
@@ -25,6 +26,14 @@ EXPECTED = {
     "sm": FF_SENSOR + FF_MOTOR + linear(15, 128) + linear(128, 5),
     "rec-s": REC_SENSOR + linear(10, 128) + linear(128, 5),
     "rec-sm": REC_SENSOR + REC_MOTOR + linear(15, 128) + linear(128, 5),
+    # the memory reads 16 + 2 (the last command); the transition is 15 -> 64 -> 10
+    "rec-sma": REC_SENSOR
+    + 4 * 32 * 2
+    + REC_MOTOR
+    + linear(15, 128)
+    + linear(128, 5)
+    + linear(15, 64)
+    + linear(64, 10),
 }
 
 
@@ -57,7 +66,7 @@ def test_forward_shapes_and_encode(kind):
     pred, z, state = model(s, m)
     assert pred.shape == (3, 7, 5)
     assert z.shape == (3, 7, 10)
-    z_alone, _ = model.encode(s)
+    z_alone, _ = model.encode(s, motors=m)
     torch.testing.assert_close(z_alone, z)
     if ModelConfig(kind).recurrent:
         assert state[0].shape == (3, 3, 32)
@@ -86,6 +95,43 @@ def test_feedforward_steps_are_independent_recurrent_are_not():
         _, z2, _ = model(s2, torch.zeros(1, 6, 2))
         later_changed = not torch.allclose(z1[0, 1:], z2[0, 1:])
         assert later_changed == ModelConfig(kind).recurrent, kind
+
+
+def test_motor_memory_reads_the_last_command_and_carries_it_across_chunks():
+    model = build_model("rec-sma", seed=0)
+    s, m = torch.rand(2, 9, 5), torch.rand(2, 9, 2)
+    _, z, _ = model(s, m)
+    m2 = m.clone()
+    m2[:, 4] += 1.0  # the command at step 4 reaches the memory at step 5, not before
+    _, z2, _ = model(s, m2)
+    assert torch.equal(z[:, :5], z2[:, :5])
+    assert not torch.allclose(z[:, 5:], z2[:, 5:])
+    _, za, state = model(s[:, :4], m[:, :4])  # chunked: the state carries m_3 to step 4
+    _, zb, _ = model(s[:, 4:], m[:, 4:], state)
+    torch.testing.assert_close(torch.cat([za, zb], 1), z)
+
+
+def test_the_ablation_without_motors_in_memory_ignores_them():
+    model = build_model(ModelConfig("rec-sma", memory_motors=False), seed=0)
+    s, m = torch.rand(2, 6, 5), torch.rand(2, 6, 2)
+    assert torch.equal(model(s, m)[1], model(s, m + 1)[1])  # z_s: blind to the commands
+    with pytest.raises(ValueError, match="does not read motors"):
+        ModelConfig("rec-sm", memory_motors=True)
+
+
+def test_open_loop_starts_with_forwards_prediction_and_begins_still():
+    model = build_model("rec-sma", seed=0)
+    s, m = torch.rand(2, 10, 5), torch.rand(2, 10, 2)
+    pred, z, _ = model(s, m)
+    ahead = model.ahead(z[:, :7], m, 4)  # (K, B, T, 5) from m_t .. m_{t+3}
+    assert ahead.shape == (4, 2, 7, 5)
+    torch.testing.assert_close(ahead[0], pred[:, :7])
+    # a fresh transition leaves the belief where it is: step k reads z_t with m_{t+k-1}
+    z_m = model.motor_encoder(m)
+    still = model.predictor(torch.cat([z[:, :7], z_m[:, 3:10]], -1))
+    torch.testing.assert_close(ahead[3], still)
+    with pytest.raises(ValueError, match="no open-loop"):
+        build_model("rec-sm").ahead(z, m, 2)
 
 
 def test_seed_fixes_initial_weights():

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from sensorimotor.analysis.clusters import N_CLUSTERS
+from sensorimotor.analysis.probes import PROBE_FIT_MAX, place_probes
 from sensorimotor.analysis.representation import (
     RepresentationAnalysis,
     analyze_representation,
@@ -25,7 +26,7 @@ from sensorimotor.analysis.representation import (
 )
 from sensorimotor.errors import InputError
 from sensorimotor.files import atomic_path, check_writable, write_json_atomic
-from sensorimotor.learn.models import KINDS
+from sensorimotor.learn.models import KINDS, paper_kinds
 from sensorimotor.sim.core import read_sensors
 from sensorimotor.sim.database import Database, load_database
 from sensorimotor.version import __version__
@@ -34,30 +35,35 @@ RAW = "raw"  # the RUN_DIR that means "the raw readings"
 
 
 def with_raw() -> tuple[str, ...]:
-    """The raw readings, then every model kind: each representation the paper compares."""
-    return (RAW, *KINDS)
+    """The raw readings, then the paper's kinds: each representation the paper compares."""
+    return (RAW, *paper_kinds())
 
 
 def short_name(name: str) -> str:
     """A representation's name in tables and legends: ``raw`` or a kind's short name."""
     return RAW if name == RAW else KINDS[name].short
+
+
 SPLIT = "test"
 
 
-def representation_of(run, db: Database, split: str = SPLIT) -> np.ndarray:
-    """(n, D) representation of ``db``'s split: ``run`` is ``"raw"``, a run folder or a loaded
-    ``evaluate.Run``. InputError naming the file if the split is too short to cluster."""
-    n = len(db.take(split))
+def representation_of(
+    run, db: Database, split: str = SPLIT, steps: int | None = None
+) -> np.ndarray:
+    """(n, D) representation of ``db``'s split, or of its first ``steps``: ``run`` is ``"raw"``,
+    a run folder or a loaded ``evaluate.Run``. InputError naming the file if the split is too
+    short to cluster."""
+    n = len(db.take(split).sensors[:steps])
     if n < N_CLUSTERS:
         raise InputError(
             f"{db.source}: the {split} split has {n} steps; the analysis needs at least {N_CLUSTERS}"
         )
     if isinstance(run, str) and run == RAW:
-        z = scaled_readings(db.take(split).sensors, db.max_range)
+        z = scaled_readings(db.take(split).sensors[:steps], db.max_range)
     else:
         from sensorimotor.learn.evaluate import encode  # torch only for a model
 
-        z = encode(run, db, split)
+        z = encode(run, db, split, steps)
     distinct = len(np.unique(z[:100_000], axis=0))
     if distinct < N_CLUSTERS:  # k-means and PCA would only warn, and write NaN
         raise InputError(
@@ -66,6 +72,32 @@ def representation_of(run, db: Database, split: str = SPLIT) -> np.ndarray:
             "never moves, or readings that never change?)"
         )
     return z
+
+
+def probe_places(run, db: Database) -> dict:
+    """``probes.place_probes`` of ``run``'s representation (``"raw"``, a run folder or a loaded
+    run): fitted on the first ``PROBE_FIT_MAX`` steps of ``db``'s training split, scored on its
+    test split; the room is None where the world names no rooms (or its walls are unknown)."""
+    fit, test = db.take("train"), db.take(SPLIT)
+    z_fit = representation_of(run, db, "train", PROBE_FIT_MAX)
+    z = representation_of(run, db, SPLIT)
+    fit_poses = fit.poses[: len(z_fit)]
+    rooms = db.world.rooms if db.has_walls else ()
+    room_fit = room = None
+    if rooms:
+        room_fit = db.world.room_index(fit_poses[:, 0], fit_poses[:, 1])
+        room = db.world.room_index(test.poses[:, 0], test.poses[:, 1])
+    size = (db.world.width, db.world.height) if db.has_walls else _extent(test.poses)
+    try:
+        return place_probes(z_fit, fit_poses, z, test.poses, room_fit, room, size)
+    except ValueError as err:
+        raise InputError(f"{db.source}: cannot probe the places ({err})") from None
+
+
+def _extent(poses: np.ndarray) -> tuple[float, float]:
+    """The width and height of the region the poses cover (walls unknown)."""
+    span = np.ptp(np.asarray(poses)[:, :2], axis=0)
+    return float(max(span[0], 1e-9)), float(max(span[1], 1e-9))
 
 
 # Every file an analysis may write; those it does not write this time are removed from its folder.
@@ -174,6 +206,7 @@ def analyze_files(
     run, db, fit_db, out = load_inputs(run, data, fit_data, out, OUTPUTS)
     source = _analyze(run, fit_db, seed) if fit_db is not None else None
     result = _analyze(run, db, seed, source)
+    probes = probe_places(run, db)
     out = _out_dir(out)  # made only once the analysis has succeeded
     # metrics.json, written last, marks a whole analysis: a folder that a failure (a full
     # disk) leaves with this analysis' figures has no metrics of an earlier one beside them
@@ -223,6 +256,7 @@ def analyze_files(
         "version": __version__,
         "analysis": result.metrics,
         "fit_analysis": None if source is None else source.metrics,
+        "probes": probes,
     }
     arrays = out / "pca.npz"  # what a report needs to redraw Fig. 4 beside other models
     with atomic_path(arrays, ".npz") as tmp, open(tmp, "wb") as f:

@@ -156,7 +156,7 @@ def _table_claims(t: dict) -> list[Verdict]:
             )
         )
     rows = {r["model"]: r["cells"] for r in t["tables"].get("square", [])}
-    if all(k in rows for k in KINDS):
+    if all(k in rows for k in (S, REC_S)):
         pairs = {w: (rows[REC_S][w], rows[S][w]) for w in t["worlds"]}
         claims.append(
             Verdict(
@@ -204,9 +204,7 @@ def _square_claims(n: dict) -> list[Verdict]:
         f"Rec-S {corner[REC_S]:.2f}, SM {corner[SM]:.2f}, Rec-SM {corner[REC_SM]:.2f}",
         unless_missing(corner.values(), corner[REC_S] + 0.1 <= min(corner[SM], corner[REC_SM])),
     )
-    mem = {
-        k: (_m(n[k]["nothing_clusters"]), _m(n[k]["behind_r2"])) for k in (S, SM, REC_S, REC_SM)
-    }
+    mem = {k: (_m(n[k]["nothing_clusters"]), _m(n[k]["behind_r2"])) for k in (S, SM, REC_S, REC_SM)}
     flat = [v for pair in mem.values() for v in pair]
     claim(
         "Memory: Rec-SM splits the 'nothing in view' states (more than one such cluster; distance to "
@@ -247,8 +245,7 @@ def _transfer_claims(transfers: dict[str, dict], numbers: dict) -> list[Verdict]
         fit_f1 = fit["events"][event]["f1"]
         raw_f1 = _m(numbers.get(source, {}).get("raw", {}).get(f"{event}_f1", [math.nan]))
         to = {
-            w: cluster_f1(transfers[f"{key}__to__{w}"]["analysis"], cluster, event)
-            for w in targets
+            w: cluster_f1(transfers[f"{key}__to__{w}"]["analysis"], cluster, event) for w in targets
         }
         label = event.replace("_", " ")
         grew = fit_f1 >= raw_f1 + 0.1  # the test of a cluster growing, as in the claims above

@@ -194,3 +194,67 @@ def memory_scores(
         "nothing_clusters": len(mostly),
         "nothing_cluster_ids": mostly.tolist(),
     }
+
+
+BURN_IN = 200  # steps a recurrent memory is given at the start of a split before it is scored
+PROBE_FIT_MAX = 100_000  # training-split steps a place probe is fitted on (its first ones)
+
+
+def place_probes(
+    z_fit: np.ndarray,
+    poses_fit: np.ndarray,
+    z: np.ndarray,
+    poses: np.ndarray,
+    rooms_fit: np.ndarray | None = None,
+    rooms: np.ndarray | None = None,
+    world_size: tuple[float, float] = (50, 50),
+    burn_in: int = BURN_IN,
+) -> dict:
+    """Where the robot is, read linearly from the representation: probes fitted on one split
+    (``z_fit``, the training split's) and scored on another (``z``, the test split's), each
+    after its first ``burn_in`` steps (a memory starts empty).
+
+    - ``room.balanced_accuracy``: class-balanced logistic regression from z to the room
+      (steps outside every room left out; None without rooms, or with fewer than two in either
+      split); ``room.chance`` is 1 / rooms.
+    - ``position.r2.{x,y}``: ridge regression R^2; ``position.median_error``: the median
+      distance (world units) between the probed (x, y) and the true one.
+    - ``knn_mse``: ``knn_mse`` of the scored steps (with its ``chance``).
+    Features are standardised on the fitting split.
+    """
+    from sklearn.linear_model import LogisticRegression
+    from sklearn.metrics import balanced_accuracy_score
+
+    z_fit, z = check_z(z_fit, len(poses_fit)), check_z(z, len(poses))
+    if min(len(z_fit), len(z)) <= burn_in + KNN_K:
+        raise ValueError(f"too few steps to probe after a burn-in of {burn_in}")
+    fit = np.arange(burn_in, len(z_fit))
+    score = np.arange(burn_in, len(z))
+    xf, x = z_fit[fit], z[score]
+    pf, p = np.asarray(poses_fit, np.float64)[fit, :2], np.asarray(poses, np.float64)[score, :2]
+    ridge = make_pipeline(StandardScaler(), Ridge(alpha=RIDGE_ALPHA)).fit(xf, pf)
+    guess = ridge.predict(x)
+    r2 = {axis: float(r2_score(p[:, i], guess[:, i])) for i, axis in enumerate("xy")}
+    room = None
+    if rooms_fit is not None and rooms is not None:
+        rf, rs = np.asarray(rooms_fit)[fit], np.asarray(rooms)[score]
+        inf, ins = rf >= 0, rs >= 0
+        if len(np.unique(rf[inf])) >= 2 and len(np.unique(rs[ins])) >= 2:
+            clf = make_pipeline(
+                StandardScaler(), LogisticRegression(class_weight="balanced", max_iter=1000)
+            )
+            clf.fit(xf[inf], rf[inf])
+            acc = balanced_accuracy_score(rs[ins], clf.predict(x[ins]))
+            room = {"balanced_accuracy": float(acc), "chance": 1 / len(np.unique(rf[inf]))}
+    knn = knn_mse(x, p, world_size)
+    return {
+        "burn_in": burn_in,
+        "fit_steps": len(fit),
+        "scored_steps": len(score),
+        "room": room,
+        "position": {
+            "r2": r2,
+            "median_error": float(np.median(np.linalg.norm(guess - p, axis=1))),
+        },
+        "knn_mse": {"value": knn["knn_mse"], "chance": knn["chance"]},
+    }

@@ -29,7 +29,7 @@ def fmt_cell(cell: dict | None, digits: int = 5) -> str:
 
 def paper_ordering_holds(cells: dict[str, float]) -> bool | None:
     """The paper's claim in one column: Rec-SM < SM < both Rec-S and S (None if a cell is missing)."""
-    if any(k not in cells for k in KINDS):
+    if any(k not in cells for k in (S, SM, REC_S, REC_SM)):
         return None
     return cells[REC_SM] < cells[SM] < min(cells[REC_S], cells[S])
 

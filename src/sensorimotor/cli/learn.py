@@ -22,8 +22,9 @@ from sensorimotor.learn.models import S
 from sensorimotor.sim import MAX_SEED
 
 SET_HELP = (
-    "A setting KEY=VALUE, repeatable: lr, batch_size, horizon, patience, min_ratio, or a model "
-    "size: z_sensors, z_motors, rec_hidden, lstm_size, lstm_layers, predictor_hidden."
+    "A setting KEY=VALUE, repeatable: lr, batch_size, horizon, ahead (rec-sma), patience, "
+    "min_ratio; a model size: z_sensors, z_motors, rec_hidden, lstm_size, lstm_layers, "
+    "predictor_hidden, transition_hidden; or memory_motors=false (rec-sma's ablation)."
 )
 
 
@@ -72,8 +73,8 @@ def train(
         raise InputError(f"--max-epochs must be at least 1, got {max_epochs}")
     if max_minutes is not None and not max_minutes > 0:
         raise InputError(f"--max-minutes must be positive, got {max_minutes}")
-    config = TrainConfig(
-        model=model, seed=seed, max_epochs=max_epochs, max_minutes=max_minutes, device=device
+    config = TrainConfig.of(
+        model, seed=seed, max_epochs=max_epochs, max_minutes=max_minutes, device=device
     )
     config, sizes = apply_settings(config, settings or [])
 
@@ -158,7 +159,9 @@ def _train(model, data: Path, out: Path, config, seeds: list[int], note, resume,
                 "without *",
                 highlight=False,
             )
-        line = epoch_line(r, stopper, None if single else seed, config.max_minutes, config.max_epochs)
+        line = epoch_line(
+            r, stopper, None if single else seed, config.max_minutes, config.max_epochs
+        )
         err_console.print(line)
 
     if single:

@@ -57,6 +57,11 @@ EXPERIMENTS: dict[str, Experiment] = {
         Experiment(
             "real", "sensorimotor.experiments.real", "a real robot's laser log and a real campus"
         ),
+        Experiment(
+            "memory",
+            "sensorimotor.experiments.memory",
+            "a memory that reads the motor commands: does it know the room and the position?",
+        ),
     )
 }
 """Every experiment by name, in the order they run."""

@@ -30,7 +30,7 @@ from sensorimotor.errors import InputError
 from sensorimotor.files import file_hash, read_json, write_json_atomic, write_text_atomic
 from sensorimotor.jobs.cache import read_key, stage_key
 from sensorimotor.jobs.workers import Job
-from sensorimotor.learn.models import KINDS
+from sensorimotor.learn.models import paper_kinds
 from sensorimotor.learn.runs import run_name
 from sensorimotor.pipeline.stages import (
     analysis_job,
@@ -129,7 +129,7 @@ def run(ctx) -> dict:
     d = ctx.dir
     scale = getattr(rep.scale, "name", "")
     steps = CAMPUS_STEPS.get(scale, CAMPUS_STEPS["quick"])
-    kinds = list(KINDS)
+    kinds = paper_kinds()
     for sub in ("data", "eval", "analysis", "runs"):
         (d / sub).mkdir(parents=True, exist_ok=True)
 

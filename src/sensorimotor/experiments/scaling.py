@@ -37,7 +37,7 @@ from sensorimotor.experiments.scaling_report import plot_errors, section, verdic
 from sensorimotor.files import file_hash, read_json, read_json_if_any, write_json_atomic
 from sensorimotor.jobs.cache import read_key, stage_key
 from sensorimotor.jobs.workers import Job
-from sensorimotor.learn.models import KINDS
+from sensorimotor.learn.models import paper_kinds
 from sensorimotor.learn.runs import run_name
 from sensorimotor.pipeline.stages import analysis_job, eval_job, train_and_tell, train_config
 from sensorimotor.stats import describe, mean_sd, present
@@ -277,7 +277,7 @@ def _train_jobs(ctx, size: Size, plans: list[Plan], device: str, hashes: dict) -
 
     jobs = []
     for plan in plans:
-        for model in KINDS:
+        for model in paper_kinds():
             config = _train_config(size, model, device)
             key = stage_key(
                 {
@@ -299,7 +299,7 @@ def _eval_targets(ctx, plan: Plan, size: Size) -> list[tuple[str, list[Path], Pa
     data = [*plan.test_data, *plan.seen_data]
     return [
         (run, data, ctx.dir / "eval" / f"{Path(run).name}.json")
-        for model in KINDS
+        for model in paper_kinds()
         for _, run in _run_dirs(ctx, plan.cond, model, size)
     ]
 
@@ -311,7 +311,7 @@ def _analysis_targets(ctx, plan: Plan, size: Size) -> list[tuple[str, str, str, 
     for db in plan.test_data:
         where = ctx.dir / "analysis"
         out.append(("raw", "raw", str(db), where / f"raw__{plan.cond.name}__on__{db.stem}"))
-        for model in KINDS:
+        for model in paper_kinds():
             for _, run in _run_dirs(ctx, plan.cond, model, size):
                 out.append((model, run, str(db), where / f"{Path(run).name}__on__{db.stem}"))
     return out
@@ -409,7 +409,7 @@ def condition_numbers(cond, evals, test_names, seen_names, base, numbers) -> dic
     of its mean over the test databases), on the training plans too for ``plans``, the
     baselines, the claim numbers (means over seeds and test databases) and the verdicts."""
     errors, seen = {}, {}
-    for kind in KINDS:
+    for kind in paper_kinds():
         mine = [e for e in evals if e["model"] == kind]
         values = [float(np.mean([e["errors"][w] for w in test_names])) for e in mine]
         errors[kind] = {**describe(values), "values": values}

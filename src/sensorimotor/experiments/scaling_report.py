@@ -13,7 +13,7 @@ from pathlib import Path
 
 from sensorimotor.analysis.analyze import short_name, with_raw
 from sensorimotor.analysis.tables import paper_ordering_holds
-from sensorimotor.learn.models import KINDS, REC_SM, SM, S
+from sensorimotor.learn.models import REC_SM, SM, S, paper_kinds
 from sensorimotor.learn.runs import count
 from sensorimotor.report.blocks import Block, h, image, p, table
 from sensorimotor.stats import BEFORE, Verdict, is_missing, word
@@ -66,7 +66,7 @@ def verdicts(errors: dict[str, float], claims: dict[str, dict]) -> list[Verdict]
             finite(claims.get(k, {}).get("nothing_clusters")),
             finite(claims.get(k, {}).get("behind_r2")),
         )
-        for k in KINDS
+        for k in paper_kinds()
     }
     ok = None
     if None not in (mem[REC_SM][0], mem[REC_SM][1], mem[S][1]):
@@ -102,10 +102,10 @@ def plot_errors(conds: dict, path: Path) -> Path:
 
     fig = Figure(figsize=(7.5, 3.2), layout="constrained")
     ax = fig.add_subplot()
-    width = 0.8 / len(KINDS)
-    for k, kind in enumerate(KINDS):
+    width = 0.8 / len(paper_kinds())
+    for k, kind in enumerate(paper_kinds()):
         ratios = [c["errors"][kind]["mean"] / c["copy_last"] for c in conds.values()]
-        xs = [i + (k - (len(KINDS) - 1) / 2) * width for i in range(len(conds))]
+        xs = [i + (k - (len(paper_kinds()) - 1) / 2) * width for i in range(len(conds))]
         ax.bar(xs, ratios, width, label=short_name(kind))
     ax.axhline(1.0, color="k", lw=0.8, ls="--")
     ax.set_yscale("log")

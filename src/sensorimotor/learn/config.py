@@ -18,6 +18,9 @@ def check_device(device: str) -> None:
         raise InputError(f"unknown device {device!r}: use auto, cpu or cuda")
 
 
+MAX_AHEAD = 256  # open-loop steps: each costs a pass of the predictor over every step
+
+
 @dataclass(frozen=True)
 class TrainConfig:
     """How one model is trained; the defaults are the paper's (section V.A)."""
@@ -32,6 +35,12 @@ class TrainConfig:
     """Transitions per step (feed-forward); streams per step (recurrent)."""
     horizon: int = 20
     """Truncation horizon of back-propagation through time (recurrent models)."""
+    ahead: int = 1
+    """Readings predicted open loop from each step, s_{t+1} .. s_{t+ahead}, the loss their
+    mean (kinds with a motor memory; the others predict one)."""
+    ahead_every: int = 1
+    """Open-loop predictions start at every this many steps (the memory reads every one):
+    the loss's mean is estimated at a fraction of the cost."""
     patience: int = 10
     """Stop after this many epochs in a row without improvement."""
     min_ratio: float = 0.95
@@ -53,6 +62,7 @@ class TrainConfig:
             raise InputError(f"TrainConfig.model: use one of {kinds}, got {self.model!r}")
         check_device(self.device)
         counts = {"seed": 0, "batch_size": 1, "horizon": 1, "patience": 1, "threads": 1}
+        counts |= {"ahead": 1, "ahead_every": 1}
         counts |= {} if self.max_epochs is None else {"max_epochs": 1}
         for name, least in counts.items():
             value = getattr(self, name)
@@ -71,3 +81,18 @@ class TrainConfig:
             object.__setattr__(self, name, float(value))
         if self.min_ratio > 1:
             raise InputError(f"TrainConfig.min_ratio must be at most 1, got {self.min_ratio!r}")
+        if self.ahead > 1 and not KINDS[self.model].motor_memory:
+            raise InputError(
+                f"TrainConfig.ahead: {self.model} predicts one step (open loop needs rec-sma's "
+                f"transition), got {self.ahead}"
+            )
+        if self.ahead > MAX_AHEAD:
+            raise InputError(f"TrainConfig.ahead must be at most {MAX_AHEAD}, got {self.ahead}")
+
+    @classmethod
+    def of(cls, model: str, **settings) -> TrainConfig:
+        """The training of ``model``: the paper's defaults, then the kind's own
+        (``Kind.training``), then ``settings``."""
+        if model not in KINDS:
+            raise InputError(f"TrainConfig.model: use one of {', '.join(KINDS)}, got {model!r}")
+        return cls(**{"model": model, **dict(KINDS[model].training), **settings})

@@ -38,7 +38,7 @@ import torch
 
 from sensorimotor.learn.batches import epoch_generator, stream_layout
 from sensorimotor.learn.config import TrainConfig
-from sensorimotor.learn.evaluate import model_error
+from sensorimotor.learn.evaluate import ahead_errors, model_error
 from sensorimotor.learn.fast import cuda_graphs
 from sensorimotor.learn.fast.adam import FusedAdam
 from sensorimotor.learn.fast.check import computes_models_py
@@ -118,7 +118,9 @@ class AutogradEngine:
             s, m = self.data.train_split(mb.split)
             mb.model.train()
             if mb.model.config.recurrent:
-                error = train_epoch_recurrent(mb.model, mb.opt, s, m, c.batch_size, c.horizon)
+                error = train_epoch_recurrent(
+                    mb.model, mb.opt, s, m, c.batch_size, c.horizon, c.ahead, c.ahead_every
+                )
             else:
                 order = epoch_generator(mb.seed, epoch)
                 error = train_epoch_feedforward(mb.model, mb.opt, s, m, c.batch_size, order)
@@ -126,6 +128,14 @@ class AutogradEngine:
         return errors
 
     def val_errors(self) -> list[float]:
+        """Each seed's validation error; with ``ahead`` > 1 the open-loop errors' mean, what
+        it was trained on."""
+        if self.config.ahead > 1:
+            ahead = self.config.ahead
+            return [
+                float(ahead_errors(mb.model, *self.data.val[mb.split], ahead).mean())
+                for mb in self.members
+            ]
         return [model_error(mb.model, *self.data.val[mb.split]) for mb in self.members]
 
     def snapshot(self, k: int) -> tuple[SensorimotorEncoder, dict]:
@@ -208,17 +218,24 @@ def train_epoch_feedforward(model, opt, s, m, batch: int, gen: torch.Generator) 
     return float(total) / n
 
 
-def train_epoch_recurrent(model, opt, s, m, streams: int, horizon: int) -> float:
+def train_epoch_recurrent(
+    model, opt, s, m, streams: int, horizon: int, ahead: int = 1, every: int = 1
+) -> float:
     """One epoch of truncated BPTT over ``streams`` contiguous streams; mean training error.
 
-    On CUDA the chunks that no stream's end pads run as one replayed graph each
-    (``fast.cuda_graphs``): the same arithmetic, a fraction of the launches."""
+    A model with a motor memory predicts s_{t+1} .. s_{t+ahead} open loop from every
+    ``every``-th step (``models.SensorimotorEncoder.ahead``): the loss is their mean, each
+    target inside the split (a stream's last steps look into the data that follow it). On CUDA the chunks that
+    no stream's end pads run as one replayed graph each (``fast.cuda_graphs``): the same
+    arithmetic, a fraction of the launches."""
     n = len(s) - 1
     index, mask = stream_layout(n, streams)
     graphed = 0  # leading steps of every stream run by the graph
-    if cuda_graphs.enabled(s):
+    if cuda_graphs.enabled(s) and not model.config.motor_memory:
         unmasked = int(mask.all(0).long().cumprod(0).sum())  # columns before the first pad
         graphed = unmasked // horizon * horizon
+    if model.config.motor_memory:
+        return _open_loop_epoch(model, opt, s, m, index, mask, horizon, ahead, every)
     w = None if bool(mask.all()) else mask.float().to(s.device)  # (streams, L)
     index = index.to(s.device)
     xs, xm, y = s[:-1][index], m[:-1][index], s[1:][index]  # (streams, L, 5|2|5)
@@ -249,3 +266,34 @@ def train_epoch_recurrent(model, opt, s, m, streams: int, horizon: int) -> float
         loss.backward()
         opt.step()
     return float(total) / n
+
+
+def _open_loop_epoch(model, opt, s, m, index, mask, horizon: int, ahead: int, every: int) -> float:
+    """``train_epoch_recurrent`` for a motor memory: each chunk's beliefs z_s predict the
+    ``ahead`` readings after every step; returns the mean over every (step, k) inside the split."""
+    n = len(s) - 1
+    length = index.shape[1]
+    grid = index[:, :1] + torch.arange(length + ahead - 1)  # (B, L + K - 1): the data go on
+    inside = torch.stack([grid[:, :length] + k + 1 <= n for k in range(ahead)])
+    inside &= mask  # (K, B, L): a start of the stream, its target inside the split
+    w = inside.float().to(s.device)
+    at = grid.clamp(max=n).to(s.device)
+    xs, xm, y = s[at], m[at], s[(at + 1).clamp(max=n)]  # (B, L + K - 1, 5|2|5)
+    total = torch.zeros((), device=s.device)
+    count = torch.zeros((), device=s.device)
+    state = None
+    for j in range(0, index.shape[1], horizon):
+        t = min(horizon, index.shape[1] - j)
+        z, state = model.encode(xs[:, j : j + t], state, xm[:, j : j + t])  # (B, t, 10)
+        state = tuple(h.detach() for h in state)  # carry, but stop gradients (truncation)
+        pred = model.ahead(z, xm[:, j : j + t + ahead - 1], ahead, every)  # (K, B, t', 5)
+        target = torch.stack([y[:, j + k : j + k + t : every] for k in range(ahead)])
+        wj = w[:, :, j : j + t : every]  # (K, B, t')
+        err = ((pred - target) ** 2).sum(-1) * wj
+        loss = err.sum() / wj.sum().clamp(min=1)
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        total += err.sum().detach()
+        count += wj.sum()
+    return float(total / count)

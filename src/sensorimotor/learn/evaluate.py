@@ -66,6 +66,30 @@ def prediction_error(pred: torch.Tensor, sensors: torch.Tensor) -> float:
     return float(((pred[:-1] - sensors[1:]) ** 2).sum(-1).mean())
 
 
+@torch.no_grad()
+def ahead_errors(
+    model: SensorimotorEncoder, sensors: torch.Tensor, motors: torch.Tensor, steps: int
+) -> torch.Tensor:
+    """(K,) the paper's error of the open-loop predictions of s_{t+1} .. s_{t+K} (``ahead``)
+    over one contiguous split, each k's mean over the steps whose K targets are inside it."""
+    _, z = run_model(model, sensors, motors)  # (n, 10), the state carried from the start
+    starts = len(sensors) - steps
+    if starts < 1:
+        raise ValueError(f"{len(sensors)} steps cannot score {steps} steps ahead")
+    was_training = model.training
+    model.eval()
+    total = torch.zeros(steps, dtype=torch.float64)
+    try:
+        for i in range(0, starts, CHUNK):
+            j = min(i + CHUNK, starts)
+            pred = model.ahead(z[None, i:j], motors[None, i : j + steps - 1], steps)[:, 0]
+            target = torch.stack([sensors[i + k + 1 : j + k + 1] for k in range(steps)])
+            total += ((pred - target) ** 2).sum(-1).sum(-1).double()  # (K,)
+    finally:
+        model.train(was_training)
+    return (total / starts).float()
+
+
 def model_error(model: SensorimotorEncoder, sensors: torch.Tensor, motors: torch.Tensor) -> float:
     """The error of ``model`` over one contiguous split."""
     pred, _ = run_model(model, sensors, motors)
@@ -170,15 +194,16 @@ def _describe(layout: dict) -> str:
 
 
 def encode(
-    run: Run | str | Path, db: Database | str | Path, split: str = "test"
+    run: Run | str | Path, db: Database | str | Path, split: str = "test", steps: int | None = None
 ) -> np.ndarray:
-    """z_s (n, 10) of a trained model over one split (recurrent: state carried from its start).
-    ``run`` and ``db`` may be loaded already or given by path."""
+    """z_s (n, 10) of a trained model over one split, or its first ``steps`` (recurrent: state
+    carried from its start). ``run`` and ``db`` may be loaded already or given by path."""
     if not isinstance(run, Run):
         run = load_run(run)
     db = as_database(db)
     check_fits(run, db)
     s, m = split_tensors(db, split)
+    s, m = s[:steps], m[:steps]
     if len(s) == 0:
         raise InputError(f"{db.source}: the {split} split is empty")
     _, z = run_model(run.model, s, m)
@@ -217,4 +242,3 @@ def evaluate_run(
         "errors": errors,
         "baselines": base,
     }
-

@@ -1,12 +1,20 @@
-"""The four encoders of the paper (section III, sizes from section V.A), in one file.
+"""The four encoders of the paper (section III, sizes from section V.A), and the
+action-conditioned one that goes beyond it, in one file.
 
 Every model maps sensors s_t (and motors m_t) to a prediction of s_{t+1} through a sensory
-representation z_s (10-d). Shapes: B batch, T time, 5 sensors, 2 motors.
+representation z_s (10-d). Shapes: B batch, T time, K steps ahead, 5 sensors, 2 motors.
 
     S-encoder      s_t -> 16 -> 32 -> 64 -> z_s(10)                   -> 128 -> s_{t+1}
     SM-encoder     s_t -> 16 -> 32 -> 64 -> z_s(10) | m_t -> 16 -> 32 -> 64 -> z_m(5) -> 128 -> s
     Recurrent-S    s_t -> 16 -> LSTM(3 x 32) -> z_s(10)               -> 128 -> s_{t+1}
     Recurrent-SM   s_t -> 16 -> LSTM(3 x 32) -> z_s(10) | m_t -> 16 -> z_m(5)   -> 128 -> s
+    Rec-SMA        s_t -> 16 | m_{t-1} -> LSTM(3 x 32) -> z_s(10) | m_t -> 16 -> z_m(5) -> 128 -> s
+
+Rec-SMA's memory reads the previous motor command beside the reading, so it can integrate the
+path. It is also trained open loop (``ahead``): from z_s at t, a transition imagines the next
+belief without a reading, z_{t+k} = z_{t+k-1} + transition(z_{t+k-1}, z_m(m_{t+k-1}))
+(15 -> 64 -> 10), and the same predictor reads each imagined belief, so z_s must hold what
+predicts the readings K steps ahead: where the robot is, not only what it sees.
 
 ReLU after every hidden layer; z_s, z_m and the prediction are linear. The same ``forward``
 serves training, evaluation and analysis; analysis reads ``z_s`` and nothing else.
@@ -42,11 +50,16 @@ class Kind:
     motors: bool
     """The predictor reads the encoded motor command z_m."""
     motor_memory: bool = False
-    """The memory reads the motor commands too (not yet built: ``SensorimotorEncoder`` refuses)."""
+    """The memory reads the previous motor command, and a transition predicts open loop."""
     cost: float = 100.0
     """Core-seconds one seed took in the paper grid on a 2-core CPU: longest jobs start first."""
     quick_epochs: int | None = None
     """Epoch cap at ``reproduce --scale quick`` (None: early stopping alone)."""
+    training: tuple[tuple[str, int | float], ...] = ()
+    """``TrainConfig`` settings of this kind that are not the paper's defaults."""
+    paper: bool = True
+    """One of the paper's four: trained by ``reproduce``'s paper stages, in its figures and
+    claims. Another kind joins where its runs are (``reproduce --experiment memory``)."""
 
     def __post_init__(self) -> None:
         if self.motor_memory and not self.recurrent:
@@ -68,19 +81,47 @@ def register(kind: Kind) -> Kind:
 
 S = register(Kind("s", "S-encoder", "S", False, False, cost=20, quick_epochs=10)).name
 SM = register(Kind("sm", "SM-encoder", "SM", False, True, cost=44, quick_epochs=10)).name
-REC_S = register(Kind("rec-s", "Recurrent-S-encoder", "Rec-S", True, False, cost=77, quick_epochs=30)).name
+REC_S = register(
+    Kind("rec-s", "Recurrent-S-encoder", "Rec-S", True, False, cost=77, quick_epochs=30)
+).name
 REC_SM = register(
     Kind("rec-sm", "Recurrent-SM-encoder", "Rec-SM", True, True, cost=230, quick_epochs=80)
 ).name
+REC_SMA = register(
+    Kind(
+        "rec-sma",
+        "Recurrent-SMA-encoder (action-conditioned memory)",
+        "Rec-SMA",
+        True,
+        True,
+        motor_memory=True,
+        cost=1500,
+        quick_epochs=40,
+        training=(
+            ("batch_size", 4),
+            ("horizon", 256),
+            ("ahead", 32),
+            ("ahead_every", 4),
+            ("min_ratio", 0.99),
+        ),
+        paper=False,
+    )
+).name
+
+
+def paper_kinds() -> list[str]:
+    """The paper's kinds (``Kind.paper``), in the order of its Table I."""
+    return [name for name, kind in KINDS.items() if kind.paper]
 
 
 def paper_panels() -> list[str]:
-    """The kinds in the order of the paper's Fig. 4 panels: without motors first, then with;
+    """The paper's kinds in the order of its Fig. 4 panels: without motors first, then with;
     memoryless before recurrent."""
-    return sorted(KINDS, key=lambda k: (KINDS[k].motors, KINDS[k].recurrent))
+    return sorted(paper_kinds(), key=lambda k: (KINDS[k].motors, KINDS[k].recurrent))
 
 
-State = tuple[torch.Tensor, torch.Tensor] | None  # LSTM (h, c), each (layers, B, 32); None = zero
+# LSTM (h, c), each (layers, B, 32), and for a motor memory the last command (1, B, 2); None = zero
+State = tuple[torch.Tensor, ...] | None
 
 
 MAX_WIDTH = 4096  # units of any one layer: far beyond these models, within any memory
@@ -110,14 +151,26 @@ class ModelConfig:
     """Stacked LSTM layers."""
     predictor_hidden: int = 128
     """The prediction subnetwork's one hidden layer."""
+    transition_hidden: int = 64
+    """The open-loop transition's one hidden layer (kinds with a motor memory)."""
+    memory_motors: bool | None = None
+    """Whether the memory reads the previous command (None: the kind's ``motor_memory``);
+    False on such a kind feeds it zeros: the ablation that removes path integration."""
 
     def __post_init__(self) -> None:
         """Refuse an unknown kind, and sizes that are not integers in 1..MAX_WIDTH (a
         hand-edited config.json would otherwise fail deep inside torch, or exhaust memory)."""
         if self.kind not in KINDS:
             raise ValueError(f"unknown model {self.kind!r}: use one of {', '.join(KINDS)}")
+        if self.memory_motors is not None and not isinstance(self.memory_motors, bool):
+            raise ValueError(
+                f"memory_motors must be true, false or null, got {self.memory_motors!r}"
+            )
+        if self.memory_motors and not KINDS[self.kind].motor_memory:
+            raise ValueError(f"{self.kind}: its memory does not read motors (use rec-sma)")
         object.__setattr__(self, "ff_hidden", tuple(self.ff_hidden))
-        sizes = {k: v for k, v in asdict(self).items() if k not in ("kind", "ff_hidden")}
+        skip = ("kind", "ff_hidden", "memory_motors")
+        sizes = {k: v for k, v in asdict(self).items() if k not in skip}
         sizes |= {f"ff_hidden[{i}]": v for i, v in enumerate(self.ff_hidden)}
         if not self.ff_hidden or len(self.ff_hidden) > 16:
             raise ValueError(f"ff_hidden must hold 1 to 16 layer sizes, got {self.ff_hidden!r}")
@@ -132,6 +185,16 @@ class ModelConfig:
     @property
     def uses_motors(self) -> bool:
         return KINDS[self.kind].motors
+
+    @property
+    def motor_memory(self) -> bool:
+        """The model has a motor input to its memory and an open-loop transition."""
+        return KINDS[self.kind].motor_memory
+
+    @property
+    def reads_motors(self) -> bool:
+        """The memory's motor input carries the commands (not the ablation's zeros)."""
+        return self.motor_memory and self.memory_motors is not False
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -150,17 +213,16 @@ def mlp(sizes: list[int]) -> nn.Sequential:
 
 
 class SensorimotorEncoder(nn.Module):
-    """One of the four encoders, chosen by ``config.kind``."""
+    """One of the encoders, chosen by ``config.kind``."""
 
     def __init__(self, config: ModelConfig):
         super().__init__()
         c = config
         self.config = c
-        if KINDS[c.kind].motor_memory:
-            raise NotImplementedError(f"{c.kind}: a memory that reads motors is not built yet")
         if c.recurrent:
             self.sensor_in = nn.Sequential(nn.Linear(c.n_sensors, c.rec_hidden), nn.ReLU())
-            self.lstm = nn.LSTM(c.rec_hidden, c.lstm_size, c.lstm_layers, batch_first=True)
+            memory_in = c.rec_hidden + (c.n_motors if c.motor_memory else 0)
+            self.lstm = nn.LSTM(memory_in, c.lstm_size, c.lstm_layers, batch_first=True)
             self.sensor_out = nn.Linear(c.lstm_size, c.z_sensors)
             motor_sizes = [c.n_motors, c.rec_hidden, c.z_motors]
         else:
@@ -171,18 +233,36 @@ class SensorimotorEncoder(nn.Module):
             self.motor_encoder = mlp(motor_sizes)
             z_in += c.z_motors
         self.predictor = mlp([z_in, c.predictor_hidden, c.n_sensors])
+        if c.motor_memory:
+            self.transition = mlp([z_in, c.transition_hidden, c.z_sensors])
+            nn.init.zeros_(self.transition[-1].weight)  # the imagined belief starts still:
+            nn.init.zeros_(self.transition[-1].bias)  # open loop begins as "nothing moves"
 
-    def encode(self, sensors: torch.Tensor, state: State = None) -> tuple[torch.Tensor, State]:
+    def encode(
+        self, sensors: torch.Tensor, state: State = None, motors: torch.Tensor | None = None
+    ) -> tuple[torch.Tensor, State]:
         """The sensory representation z_s of every step: (B, T, 5) -> (B, T, 10), new state.
 
         Feed-forward models treat steps independently and accept any leading shape (..., 5).
         Recurrent models carry the LSTM state (h, c) through time; ``state=None`` is zero.
+        A motor memory also reads ``motors`` (B, T, 2), the commands m_t: at step t it sees
+        m_{t-1}, the last one carried in the state (zero at the start).
         """
         if not self.config.recurrent:
             return self.sensor_encoder(sensors), None  # (..., 10)
         h = self.sensor_in(sensors)  # (B, T, 16)
-        h, state = self.lstm(h, state)  # (B, T, 32); h, c: (3, B, 32)
-        return self.sensor_out(h), state  # (B, T, 10)
+        if not self.config.motor_memory:
+            h, state = self.lstm(h, state)  # (B, T, 32); h, c: (3, B, 32)
+            return self.sensor_out(h), state  # (B, T, 10)
+        if motors is None:
+            raise ValueError(f"{KINDS[self.config.kind].label} needs motor commands")
+        last = motors.new_zeros(1, len(motors), motors.shape[-1]) if state is None else state[2]
+        before = torch.cat([last.transpose(0, 1), motors[:, :-1]], dim=1)  # m_{t-1}: (B, T, 2)
+        if not self.config.reads_motors:
+            before = torch.zeros_like(before)
+        lstm_state = None if state is None else state[:2]
+        h, (hn, cn) = self.lstm(torch.cat([h, before], dim=-1), lstm_state)  # (B, T, 32)
+        return self.sensor_out(h), (hn, cn, motors[:, -1:].transpose(0, 1))  # (B, T, 10)
 
     def forward(
         self, sensors: torch.Tensor, motors: torch.Tensor | None = None, state: State = None
@@ -191,7 +271,7 @@ class SensorimotorEncoder(nn.Module):
 
         sensors (B, T, 5) scaled readings, motors (B, T, 2) scaled commands (ignored by S models).
         """
-        z_s, state = self.encode(sensors, state)  # (B, T, 10)
+        z_s, state = self.encode(sensors, state, motors)  # (B, T, 10)
         z = z_s
         if self.config.uses_motors:
             if motors is None:
@@ -199,6 +279,27 @@ class SensorimotorEncoder(nn.Module):
             z_m = self.motor_encoder(motors)  # (B, T, 5)
             z = torch.cat([z_s, z_m], dim=-1)  # (B, T, 15)
         return self.predictor(z), z_s, state  # (B, T, 5), (B, T, 10)
+
+    def ahead(
+        self, z_s: torch.Tensor, motors: torch.Tensor, steps: int, every: int = 1
+    ) -> torch.Tensor:
+        """Open-loop predictions of s_{t+1} .. s_{t+K} from the beliefs z_s at every
+        ``every``-th step t, given the commands in between: z_s (B, T, 10), motors
+        (B, T + K - 1, 2) with m_t at [:, t] -> (K, B, ceil(T / every), 5). The first is
+        ``forward``'s prediction; each later one reads the belief the transition imagines one
+        command further, without a reading."""
+        if not self.config.motor_memory:
+            raise ValueError(f"{KINDS[self.config.kind].label} has no open-loop transition")
+        z = z_s[:, ::every]  # (B, T', 10)
+        span = every * (z.shape[1] - 1) + 1
+        z_m = self.motor_encoder(motors)  # (B, T + K - 1, 5)
+        preds = []
+        for k in range(steps):
+            zz = torch.cat([z, z_m[:, k : k + span : every]], dim=-1)  # (B, T', 15)
+            preds.append(self.predictor(zz))  # (B, T, 5): s_{t+k+1}
+            if k + 1 < steps:
+                z = z + self.transition(zz)  # (B, T, 10): the belief after m_{t+k}
+        return torch.stack(preds)  # (K, B, T, 5)
 
 
 def build_model(config: ModelConfig | str, seed: int | None = None) -> SensorimotorEncoder:

@@ -16,7 +16,7 @@ import numbers
 import warnings
 import zipfile
 import zlib
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Protocol
 
@@ -49,18 +49,34 @@ class Optimizer(Protocol):
     def load_state_dict(self, state: dict) -> None: ...
 
 
-SETTABLE = ("lr", "batch_size", "horizon", "patience", "min_ratio")
+SETTABLE = ("lr", "batch_size", "horizon", "ahead", "patience", "min_ratio")
 """TrainConfig settings that ``train --set KEY=VALUE`` changes (the others have options)."""
-SIZES = ("z_sensors", "z_motors", "rec_hidden", "lstm_size", "lstm_layers", "predictor_hidden")
+SIZES = (
+    "z_sensors",
+    "z_motors",
+    "rec_hidden",
+    "lstm_size",
+    "lstm_layers",
+    "predictor_hidden",
+    "transition_hidden",
+)
 """ModelConfig sizes that ``train --set KEY=VALUE`` changes (default: the paper's)."""
+SWITCHES = ("memory_motors",)
+"""ModelConfig switches that ``train --set KEY=true|false`` changes (ablations)."""
+
+
+def _switch(text: str) -> bool:
+    if text.lower() not in ("true", "false"):
+        raise ValueError(text)
+    return text.lower() == "true"
 
 
 def parse_settings(pairs: list[str]) -> dict:
     """``["lr=0.003", "lstm_size=64"]`` -> ``{"lr": 0.003, "lstm_size": 64}``, each value of
     its field's type (``SETTABLE`` and ``SIZES``); InputError naming the pair on an unknown key
     or an unreadable value (the range is TrainConfig's and ``model_config``'s to check)."""
-    kinds = {"lr": float, "batch_size": int, "horizon": int, "patience": int, "min_ratio": float}
-    kinds |= dict.fromkeys(SIZES, int)
+    kinds = {"lr": float, "min_ratio": float} | dict.fromkeys(SETTABLE[1:-1], int)
+    kinds |= dict.fromkeys(SIZES, int) | dict.fromkeys(SWITCHES, _switch)
     settings = {}
     for pair in pairs:
         key, sep, text = pair.partition("=")
@@ -70,7 +86,7 @@ def parse_settings(pairs: list[str]) -> dict:
         try:
             settings[key] = kinds[key](text.strip())
         except ValueError:
-            kind = "an integer" if kinds[key] is int else "a number"
+            kind = {int: "an integer", float: "a number"}.get(kinds[key], "true or false")
             raise InputError(f"--set {pair!r}: {key} must be {kind}") from None
     return settings
 
@@ -79,7 +95,7 @@ def apply_settings(config: TrainConfig, pairs: list[str]) -> tuple[TrainConfig, 
     """``train --set KEY=VALUE ...``: ``config`` with its settings changed, and the model's
     sizes (None: none given, the paper's)."""
     settings = parse_settings(pairs)
-    sizes = {key: settings.pop(key) for key in SIZES if key in settings}
+    sizes = {key: settings.pop(key) for key in SIZES + SWITCHES if key in settings}
     model = model_config(config.model, sizes) if sizes else None
     return replace(config, **settings), model
 
@@ -88,11 +104,19 @@ def model_config(kind: str, sizes: dict) -> ModelConfig:
     """The paper's ``kind`` encoder with ``sizes`` (some of ``SIZES``) changed; InputError on
     another key or a size that is not a positive integer."""
     for key, value in sizes.items():
+        if key in SWITCHES:
+            if not isinstance(value, bool):
+                raise InputError(f"ModelConfig.{key} must be true or false, got {value!r}")
+            continue
         if key not in SIZES:
             raise InputError(f"ModelConfig.{key}: not a size, use one of {', '.join(SIZES)}")
         if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
             raise InputError(f"ModelConfig.{key} must be an integer >= 1, got {value!r}")
-    return ModelConfig(kind=kind, **{k: int(v) for k, v in sizes.items()})
+    sizes = {k: v if k in SWITCHES else int(v) for k, v in sizes.items()}
+    try:
+        return ModelConfig(kind=kind, **sizes)
+    except ValueError as err:
+        raise InputError(f"ModelConfig: {err}") from None
 
 
 @dataclass
@@ -317,7 +341,9 @@ def check_run_dir(out: Path, meta: dict, resume: bool) -> None:
             )
         for key in ("model", "train"):
             # the caps may change between sessions; the algorithm may not
-            changed = setting_changes(old.get(key, {}), meta[key], ("max_epochs", "max_minutes"))
+            # a setting added since the run began ran at its default
+            was = {**setting_defaults(key, meta["model"]["kind"]), **old.get(key, {})}
+            changed = setting_changes(was, meta[key], ("max_epochs", "max_minutes"))
             if changed:
                 raise InputError(
                     f"{out}: --resume with another {key} setting than the run was started with "
@@ -325,6 +351,14 @@ def check_run_dir(out: Path, meta: dict, resume: bool) -> None:
                 )
         if (out / "checkpoint.pt").exists():
             check_archive(out / "checkpoint.pt")  # before the run's config is rewritten
+
+
+def setting_defaults(key: str, kind: str) -> dict:
+    """The defaults of a ``config.json`` table (``model`` or ``train``) of a ``kind`` run, for
+    the settings that a run written before they existed does not record: it ran at them."""
+    if key == "model":
+        return ModelConfig(kind=kind).to_dict()
+    return {f.name: f.default for f in fields(TrainConfig) if f.name != "device"}
 
 
 def lock_run_dir(out: Path):

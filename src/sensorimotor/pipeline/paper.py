@@ -22,7 +22,7 @@ from sensorimotor.errors import InputError
 from sensorimotor.files import file_hash, read_json, write_json_atomic
 from sensorimotor.jobs.cache import read_key, stage_key
 from sensorimotor.jobs.workers import Job, raise_first
-from sensorimotor.learn.models import KINDS, REC_SM
+from sensorimotor.learn.models import KINDS, REC_SM, paper_kinds
 from sensorimotor.learn.runs import count, run_name
 from sensorimotor.pipeline.stages import (
     analysis_job,
@@ -236,7 +236,7 @@ def _training_jobs(rep: Reproduction, data_hash: dict[str, str]):
 
     groups: dict[tuple, list] = {}  # the runs of one job: (world, model, seed, entry)
     for world in rep.worlds:
-        for model in KINDS:
+        for model in paper_kinds():
             for seed in range(rep.seeds):
                 rep.runs.append((world, model, seed))
                 run = rep.run_dir(world, model, seed)
@@ -259,8 +259,6 @@ def _training_jobs(rep: Reproduction, data_hash: dict[str, str]):
         jobs.append(Job(name, train_job, ([entry for *_, entry in runs], config)))
         trains[name] = [(world, model, seed) for world, model, seed, _ in runs]
     return jobs, trains, sum(len(runs) for runs in groups.values())
-
-
 
 
 def _train_config(sc: Scale, model: str, device: str, seed: int | None = None) -> dict:

@@ -30,21 +30,33 @@ def data_key(world: str, steps: int) -> str:
     return stage_key({"world": world, "steps": steps, "seed": 0, "version": __version__})
 
 
-def run_matches(run: Path, data_sha: str, config: dict) -> bool:
-    """Whether a run folder was made from this data, this training configuration and the
-    model sizes ``models.py`` gives now."""
+def configs(config: dict):
+    """A job's training ``config`` (``train_config``) as (TrainConfig, ModelConfig): its
+    ``sizes`` are the model's, the rest the training's, over the kind's defaults."""
     from sensorimotor.learn.config import TrainConfig
     from sensorimotor.learn.models import ModelConfig
+
+    settings = {k: v for k, v in config.items() if k != "sizes"}
+    train = TrainConfig.of(**settings)
+    return train, ModelConfig(kind=train.model, **config.get("sizes", {}))
+
+
+def run_matches(run: Path, data_sha: str, config: dict) -> bool:
+    """Whether a run folder was made from this data, this training configuration and the
+    model sizes ``models.py`` gives now (a setting it does not record ran at its default)."""
+    from sensorimotor.learn.runs import setting_defaults
 
     made = read_json_if_any(run / "config.json", "run config")
     if made is None:
         return False
-    train = TrainConfig(**config)
+    train, model = configs(config)
     want = {k: v for k, v in asdict(train).items() if k != "device"}
+    kind = train.model
+    made_model = {**setting_defaults("model", kind), **made.get("model", {})}
     return (
         made.get("data", {}).get("sha256") == data_sha
-        and made.get("train") == want
-        and made.get("model") == ModelConfig(kind=train.model).to_dict()
+        and {**setting_defaults("train", kind), **made.get("train", {})} == want
+        and {**made_model, "n_sensors": model.n_sensors} == model.to_dict()
     )
 
 
@@ -59,10 +71,18 @@ def stack_name(model: str, runs: list[tuple[str, int]]) -> str:
 
 
 def train_config(
-    model: str, device: str, max_epochs: int | None, patience: int, seed: int | None = None
+    model: str,
+    device: str,
+    max_epochs: int | None,
+    patience: int,
+    seed: int | None = None,
+    sizes: dict | None = None,
+    **settings,
 ) -> dict:
-    """The training configuration of one run (of a stack's runs without ``seed``)."""
+    """The training configuration of one run (of a stack's runs without ``seed``): ``sizes``
+    and ``settings`` change the model's and the training's (an ablation)."""
     config = {"model": model, "device": device, "max_epochs": max_epochs, "patience": patience}
+    config |= settings | ({"sizes": sizes} if sizes else {})
     return config if seed is None else {**config, "seed": seed}
 
 
@@ -106,7 +126,6 @@ def train_and_tell(data: str | list[str], runs: list[tuple[int, str]], config: d
     """``train.train_runs`` of ``runs`` (seed, run folder) on ``data`` (one database, or one
     per run), resumed where a folder holds a checkpoint, each epoch sent as a progress line;
     the best validation error of each run by its folder's name."""
-    from sensorimotor.learn.config import TrainConfig
     from sensorimotor.learn.runs import epoch_label
     from sensorimotor.learn.train import train_runs
 
@@ -121,7 +140,8 @@ def train_and_tell(data: str | list[str], runs: list[tuple[int, str]], config: d
             f"{r.samples_per_s / 1e3:.0f} k samples/s{stacked}",
         )
 
-    results = train_runs(data, runs, TrainConfig(**config, seed=0), resume=True, on_epoch=on_epoch)
+    train, model = configs(config)
+    results = train_runs(data, runs, train, resume=True, on_epoch=on_epoch, model=model)
     for name, result in zip(names, results, strict=True):
         send_progress(name, f"done: {result.ending}, best val {result.best_val_error:.5f}")
     return {name: r.best_val_error for name, r in zip(names, results, strict=True)}

@@ -38,18 +38,13 @@ class FusedAdam:
 
     @torch.no_grad()
     def step(self) -> None:
-        add_(self.steps, 1)
         grads = [p.grad for p in self.params]
-        adam_(
-            self.params,
-            grads,
-            self.exp_avg,
-            self.exp_avg_sq,
-            self.steps,
-            self.lr,
-            self.betas,
-            self.eps,
-        )
+        lists = (self.params, grads, self.exp_avg, self.exp_avg_sq, self.steps)
+        if any(g is None for g in grads):  # one the loss did not reach is left as it is,
+            keep = [i for i, g in enumerate(grads) if g is not None]  # as torch's Adam leaves it
+            lists = tuple([x[i] for i in keep] for x in lists)
+        add_(lists[-1], 1)
+        adam_(*lists, self.lr, self.betas, self.eps)
 
     def state_dict(self) -> dict:
         return {"exp_avg": self.exp_avg, "exp_avg_sq": self.exp_avg_sq, "steps": self.steps}

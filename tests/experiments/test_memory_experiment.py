@@ -1,0 +1,76 @@
+"""``reproduce --experiment memory``: Rec-SMA and its ablations trained, every representation
+probed on a fresh database, the verdicts against thresholds set before, a section; all cached."""
+
+from __future__ import annotations
+
+import json
+from types import SimpleNamespace
+
+import pytest
+
+import sensorimotor
+from sensorimotor import experiments as ex
+from sensorimotor.errors import InputError
+from sensorimotor.experiments import memory
+from sensorimotor.jobs.workers import run_jobs
+from sensorimotor.learn.models import REC_SM, paper_kinds
+from sensorimotor.report.document import to_markdown
+
+
+def _context(tmp_path, data: dict, runs: dict, seen: list, worlds=("rooms1",)):
+    rep = SimpleNamespace(
+        out=tmp_path,
+        worlds=worlds,
+        seeds=1,
+        device="cpu",
+        data=data,
+        run_dir=lambda world, model, seed: runs[model],
+        scale=SimpleNamespace(name="smoke", steps=20_000, epochs=lambda kind: 1, patience=1),
+    )
+
+    def runner(jobs, workers, progress):
+        seen.extend(job.name for job in jobs)
+        return run_jobs(jobs, workers, progress)
+
+    return ex.Context(rep, "memory", runner, 1, None, print)
+
+
+@pytest.mark.slow  # five trainings and twenty probes on 20,000-step databases
+def test_the_memory_experiment_trains_the_variants_probes_everything_and_keeps_it(
+    rooms1_db_path, tmp_path
+):
+    runs = {k: tmp_path / "runs" / f"rooms1__{k}__s0" for k in paper_kinds()}
+    for kind, run in runs.items():
+        sensorimotor.train(rooms1_db_path, run, sensorimotor.TrainConfig(model=kind, max_epochs=1))
+    seen: list[str] = []
+    found = ex.run_experiment(_context(tmp_path, {"rooms1": rooms1_db_path}, runs, seen))
+    json.dumps(found, allow_nan=False)  # strict JSON
+    assert json.loads((tmp_path / "memory" / "memory.json").read_text()) == found
+    n_variants = len(memory.VARIANTS)
+    assert sum(name.startswith("train") for name in seen) == n_variants
+    assert sum(name.startswith("probe") for name in seen) == 2 + len(paper_kinds()) + n_variants
+    rows = found["rows"]["rooms1"]
+    assert list(rows) == ["pose", "raw", *paper_kinds(), *(v.name for v in memory.VARIANTS)]
+    assert rows["pose"]["r2_x"]["mean"] > 0.99  # the ceiling holds the position exactly
+    assert rows["pose"]["room"]["mean"] > rows["raw"]["room"]["mean"]
+    assert rows["raw"]["error"]["mean"] is None and rows[REC_SM]["error"]["n"] == 1
+    assert all(len(curve) == 32 for curve in found["curves"].values())
+    claims = {v["claim"]: v for v in found["verdicts"]}
+    assert len(claims) == 3  # room and position in rooms1, the ablation
+    assert all(v["provenance"] == "set before the data" for v in claims.values())
+    assert (tmp_path / "memory" / "memory.png").stat().st_size > 10_000
+
+    again: list[str] = []
+    assert ex.run_experiment(_context(tmp_path, {"rooms1": rooms1_db_path}, runs, again)) == found
+    assert again == []  # nothing trained or probed twice
+
+    md = to_markdown(ex.sections(SimpleNamespace(out=tmp_path), {"memory": found}), tmp_path)
+    assert "## A memory that reads the motor commands" in md
+    assert "true pose (ceiling)" in md and "(strongest baseline)" in md
+    assert "(memory/memory.png)" in md
+
+
+def test_the_memory_experiment_needs_a_world_with_rooms(tmp_path):
+    ctx = _context(tmp_path, {}, {}, [], worlds=("square",))
+    with pytest.raises(InputError, match="needs rooms1 or rooms2"):
+        memory.run(ctx)
