@@ -70,7 +70,8 @@ def test_open_loop_needs_a_transition_and_has_a_bound():
     assert TrainConfig.of(REC_SMA, ahead=1).ahead == 1  # a setting over the kind's
     assert TrainConfig.of("rec-sm") == TrainConfig(model="rec-sm")
     config, sizes = apply_settings(config, ["memory_motors=false", "ahead=8"])
-    assert config.ahead == 8 and sizes.memory_motors is False
+    assert config.ahead == 8
+    assert sizes.memory_motors is False
     with pytest.raises(InputError, match="true or false"):
         apply_settings(config, ["memory_motors=no"])
 
@@ -89,7 +90,8 @@ def test_adam_leaves_a_parameter_the_loss_does_not_reach_as_torchs_adam_does():
             opt.zero_grad()
             layer(x).square().sum().backward()
             opt.step()
-    for p, q in zip([*a.parameters(), *b.parameters()], [*ref_a.parameters(), *ref_b.parameters()]):
+    ours_p, ref_p = [*a.parameters(), *b.parameters()], [*ref_a.parameters(), *ref_b.parameters()]
+    for p, q in zip(ours_p, ref_p, strict=True):
         torch.testing.assert_close(p, q)
     assert all(float(step) == 0 for step in ours.steps[2:])  # b was never stepped
 
