@@ -6,7 +6,9 @@ and 10 seeds at once, and the candidate that derives the stacked passes from ``m
 with ``torch.func`` (K = 1 and 5). For Rec-S and Rec-SM, in worker processes of one thread: the
 plain loop (``engine.train_epoch_recurrent``, nn.LSTM) with glibc's default allocator and with
 ``fast.cpu.keep_freed_memory`` (as training runs), the stacked LSTM (``stacked_lstm``) with K = 1
-and 5 seeds, and two processes at once (as ``reproduce`` runs them). Every ratio is to the plain
+and 5 seeds, and two processes at once (as ``reproduce`` runs them). Rec-SMA (its memory reads
+the commands; trained open loop with its kind's settings, ``TrainConfig.of``) has the plain loop
+alone, its ratio to Rec-SM's plain loop of the same run. Every other ratio is to the plain
 loop measured in the same run (for the recurrent models, with glibc's default allocator); the
 time of one epoch over an 800,000-step train split (a 1 M-step database) is extrapolated from
 the samples/s.
@@ -37,6 +39,7 @@ from rich.console import Console
 from rich.table import Table
 
 from sensorimotor.learn.batches import epoch_generator, epoch_orders
+from sensorimotor.learn.config import TrainConfig
 from sensorimotor.learn.engine import train_epoch_feedforward, train_epoch_recurrent
 from sensorimotor.learn.fast import cuda_graphs
 from sensorimotor.learn.fast.adam import FusedAdam
@@ -53,7 +56,8 @@ BATCH, HORIZON = 64, 20
 EPOCH_STEPS = 800_000  # train split of a 1 M-step database
 TARGETS = {"s": 190e3, "sm": 130e3, "rec-s": 320e3, "rec-sm": 320e3}  # samples/s
 STACK_TARGET = 3.0  # five stacked seeds: total samples/s over one seed's plain loop
-NAMES = {"s": "S", "sm": "SM", "rec-s": "Rec-S", "rec-sm": "Rec-SM"}
+NAMES = {"s": "S", "sm": "SM", "rec-s": "Rec-S", "rec-sm": "Rec-SM", "rec-sma": "Rec-SMA"}
+PAPER_SEED_MINUTES = 30  # issue 32: one paper-scale Rec-SMA seed on one core
 
 
 def train_split(n: int, device: str = "cpu") -> tuple[torch.Tensor, torch.Tensor]:
@@ -151,8 +155,14 @@ def _rec_worker(kind, k, n, warm_n, keep, barrier, results, device="cpu", graphs
         model = build_model(kind, seed=0).to(device)
         opt = FusedAdam(model.parameters())
 
+        c = TrainConfig.of(kind, batch_size=BATCH, horizon=HORIZON)
+        if model.config.motor_memory:  # its own streams, horizon and open loop
+            c = TrainConfig.of(kind)
+
         def epoch(s, m):
-            train_epoch_recurrent(model, opt, s, m, BATCH, HORIZON)
+            train_epoch_recurrent(
+                model, opt, s, m, c.batch_size, c.horizon, c.ahead, c.ahead_every
+            )
     else:
         net = StackedEncoders.from_models([build_model(kind, seed=sd) for sd in range(k)])
 
@@ -335,6 +345,15 @@ def main() -> None:
         target = f">= {TARGETS[kind] / 1e3:.0f} k: {met}"
         row(kind, "2 processes, stacked K = 5", total / 10, total, cpu, plain, target)
         console.print(f"  {kind} done ({load()})")
+        rec_sm_plain = plain
+    if device == "cpu":
+        c = TrainConfig.of("rec-sma")
+        total, cpu = bench_rec("rec-sma", 0, rec_n, warm_n, 1, repeats)
+        epochs = PAPER_SEED_MINUTES * 60 * total / EPOCH_STEPS
+        path = f"plain loop, {c.ahead} ahead from every {c.ahead_every}, BPTT {c.horizon}"
+        target = f"vs Rec-SM's plain; {epochs:.0f} paper epochs in {PAPER_SEED_MINUTES} min"
+        row("rec-sma", path, total, total, cpu, rec_sm_plain, target)
+        console.print(f"  rec-sma done ({load()})")
 
     console.print(table)
     console.print(f"after: {load()}")

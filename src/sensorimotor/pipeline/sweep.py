@@ -176,7 +176,7 @@ def read_sweep(path: str | Path) -> Sweep:
         settings = {**train, **{k: v for k, v in values.items() if k != "data"}}
         sizes = {k: settings.pop(k) for k in SIZES if k in settings}
         try:
-            config = TrainConfig(**settings)
+            config = TrainConfig.of(**{"model": TrainConfig.model, **settings})
             model_config(config.model, sizes)
         except (InputError, TypeError) as err:
             raise InputError(f"{path}: {name} ({_show(values)}): {err}") from None

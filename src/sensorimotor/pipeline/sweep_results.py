@@ -161,7 +161,7 @@ def command_line(data: str, config: dict, sizes: dict, out: str = "runs/best") -
         words += ["--max-epochs", str(config["max_epochs"])]
     if config["max_minutes"] is not None:
         words += ["--max-minutes", str(config["max_minutes"])]
-    default = TrainConfig()
+    default = TrainConfig.of(config["model"])  # the kind's own settings need no --set
     for key in SETTABLE:
         if config[key] != getattr(default, key):
             words += ["--set", f"{key}={config[key]!r}"]

@@ -74,11 +74,12 @@ class FeatureSet:
 
 def feature_sets() -> dict[str, FeatureSet]:
     """Every feature set by name: pose, raw, one per model kind in ``KINDS`` (read now, so a
-    kind registered later is one), random."""
+    kind registered later is one) but those whose memory reads the motor commands (the
+    wrapper does not pass them yet), random."""
     return {
         "pose": FeatureSet("pose", 4, pose_features),
         "raw": FeatureSet("raw", 5, raw_features),
-        **{k: FeatureSet(k, kind=k, trained=True) for k in KINDS},
+        **{k: FeatureSet(k, kind=k, trained=True) for k in KINDS if not KINDS[k].motor_memory},
         "random": FeatureSet("random", kind=RANDOM_KIND),
     }
 

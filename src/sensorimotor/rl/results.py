@@ -91,7 +91,7 @@ MIN_SEEDS = 3  # fewer seeds: no verdict (an interval over 2 values says next to
 
 def motor_features() -> tuple[str, ...]:
     """The encoders trained with the motor commands, from the kind registry."""
-    return tuple(k for k in KINDS if KINDS[k].motors)
+    return tuple(k for k in KINDS if KINDS[k].motors and not KINDS[k].motor_memory)
 
 
 CLAIM = "features learned with motors help the agent more than raw readings"

@@ -29,6 +29,7 @@ import numpy as np
 
 from sensorimotor.analysis.map.cells import STRAIGHT
 from sensorimotor.analysis.map.chmm import CloneHMM
+from sensorimotor.errors import InputError
 from sensorimotor.sim.core import (
     TURN_THRESHOLD,
     SensorLayout,
@@ -86,6 +87,11 @@ def encoder_of(run, max_range: float):
     next (``run`` is ``"raw"``: the readings / range, or a loaded ``evaluate.Run``)."""
     if isinstance(run, str):
         return lambda: lambda readings: np.asarray(readings, dtype=np.float64) / max_range
+    if run.model.config.motor_memory:
+        raise InputError(
+            f"{run.path}: a {run.kind} memory reads the motor commands, which the planner does "
+            "not pass to an encoder yet; plan with a paper kind's run"
+        )
     import torch
 
     from sensorimotor.sim.database import scale_sensors
