@@ -208,6 +208,14 @@ def interval(
     return bootstrap_interval(v, np.mean, strata=strata, confidence=confidence)
 
 
+def balanced_accuracy(truth, guess) -> float:
+    """The mean over the labels present in ``truth`` of the fraction of their steps guessed
+    right: a constant guess scores 1 / (labels present), whatever the labels' frequencies (a
+    guess of a label absent from ``truth`` is simply wrong)."""
+    truth, guess = np.asarray(truth), np.asarray(guess)
+    return float(np.mean([(guess[truth == c] == c).mean() for c in np.unique(truth)]))
+
+
 # --- verdicts ----------------------------------------------------------------------------------
 
 
@@ -277,6 +285,7 @@ __all__ = [
     "CONFIDENCE",
     "T_BELOW",
     "Verdict",
+    "balanced_accuracy",
     "bootstrap_interval",
     "describe",
     "interval",

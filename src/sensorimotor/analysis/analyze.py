@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from sensorimotor.analysis.clusters import N_CLUSTERS
-from sensorimotor.analysis.probes import PROBE_FIT_MAX, place_probes
+from sensorimotor.analysis.probes import BURN_IN, KNN_K, PROBE_FIT_MAX, place_probes
 from sensorimotor.analysis.representation import (
     RepresentationAnalysis,
     analyze_representation,
@@ -74,11 +74,14 @@ def representation_of(
     return z
 
 
-def probe_places(run, db: Database) -> dict:
+def probe_places(run, db: Database) -> dict | None:
     """``probes.place_probes`` of ``run``'s representation (``"raw"``, a run folder or a loaded
     run): fitted on the first ``PROBE_FIT_MAX`` steps of ``db``'s training split, scored on its
-    test split; the room is None where the world names no rooms (or its walls are unknown)."""
+    test split; the room is None where the world names no rooms (or its walls are unknown).
+    None where a split is too short for the burn-in (a short recording)."""
     fit, test = db.take("train"), db.take(SPLIT)
+    if min(len(fit), len(test)) <= BURN_IN + KNN_K:
+        return None
     z_fit = representation_of(run, db, "train", PROBE_FIT_MAX)
     z = representation_of(run, db, SPLIT)
     fit_poses = fit.poses[: len(z_fit)]
@@ -88,10 +91,7 @@ def probe_places(run, db: Database) -> dict:
         room_fit = db.world.room_index(fit_poses[:, 0], fit_poses[:, 1])
         room = db.world.room_index(test.poses[:, 0], test.poses[:, 1])
     size = (db.world.width, db.world.height) if db.has_walls else _extent(test.poses)
-    try:
-        return place_probes(z_fit, fit_poses, z, test.poses, room_fit, room, size)
-    except ValueError as err:
-        raise InputError(f"{db.source}: cannot probe the places ({err})") from None
+    return place_probes(z_fit, fit_poses, z, test.poses, room_fit, room, size)
 
 
 def _extent(poses: np.ndarray) -> tuple[float, float]:

@@ -14,6 +14,7 @@ from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
 
 from sensorimotor.analysis.clusters import check_z, cluster_event_table
+from sensorimotor.stats import balanced_accuracy
 
 KNN_K = 5  # neighbours in KNN-MSE
 KNN_MAX_POINTS = 20_000  # KNN-MSE on a fixed random subsample above this many steps
@@ -223,7 +224,6 @@ def place_probes(
     Features are standardised on the fitting split.
     """
     from sklearn.linear_model import LogisticRegression
-    from sklearn.metrics import balanced_accuracy_score
 
     z_fit, z = check_z(z_fit, len(poses_fit)), check_z(z, len(poses))
     if min(len(z_fit), len(z)) <= burn_in + KNN_K:
@@ -244,8 +244,8 @@ def place_probes(
                 StandardScaler(), LogisticRegression(class_weight="balanced", max_iter=1000)
             )
             clf.fit(xf[inf], rf[inf])
-            acc = balanced_accuracy_score(rs[ins], clf.predict(x[ins]))
-            room = {"balanced_accuracy": float(acc), "chance": 1 / len(np.unique(rf[inf]))}
+            acc = balanced_accuracy(rs[ins], clf.predict(x[ins]))
+            room = {"balanced_accuracy": acc, "chance": 1 / len(np.unique(rf[inf]))}
     knn = knn_mse(x, p, world_size)
     return {
         "burn_in": burn_in,

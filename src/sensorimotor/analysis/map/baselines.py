@@ -13,14 +13,7 @@ import numpy as np
 from sensorimotor.analysis.map.cells import ngram_bits
 from sensorimotor.analysis.map.context import CONTEXT_TAU, decayed_history
 from sensorimotor.sim.world import World
-
-
-def balanced_accuracy(truth: np.ndarray, guess: np.ndarray) -> float:
-    """The mean over the labels present in ``truth`` of the fraction of their steps guessed
-    right: a constant guess scores 1 / (labels present), whatever the labels' frequencies."""
-    labels = np.unique(truth)
-    return float(np.mean([(guess[truth == c] == c).mean() for c in labels]))
-
+from sensorimotor.stats import balanced_accuracy
 
 BASELINE_ORDERS = (2, 3)  # the (cell, action) models beside the first-order Markov model
 READOUT_STEPS = 20_000  # training steps the history read-out is fitted on (evenly spaced)

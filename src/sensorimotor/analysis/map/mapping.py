@@ -38,7 +38,7 @@ import numpy as np
 
 from sensorimotor.analysis.analyze import RAW, load_inputs, representation_of
 from sensorimotor.analysis.clusters import N_CLUSTERS, assign_clusters, fit_kmeans
-from sensorimotor.analysis.map.baselines import balanced_accuracy, higher_orders, history_readout
+from sensorimotor.analysis.map.baselines import higher_orders, history_readout
 from sensorimotor.analysis.map.cells import (
     ACTION_NAMES,
     N_ACTIONS,
@@ -68,6 +68,7 @@ from sensorimotor.errors import InputError
 from sensorimotor.files import atomic_path, write_text_atomic
 from sensorimotor.sim.database import Database
 from sensorimotor.sim.world import World
+from sensorimotor.stats import balanced_accuracy
 from sensorimotor.version import __version__
 
 N_CLONES = 20  # clones per cell (the 20-cell, 20-clone map)
