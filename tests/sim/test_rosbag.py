@@ -374,3 +374,24 @@ def test_poses_in_the_map_frame_come_from_tf_composed_with_odometry(sim_db, tmp_
         import_bag(bag, BagTopics(frame="base"))
     with pytest.raises(InputError, match="lies outside the 50 x 50 world 'square'"):
         import_bag(bag, world=load_world("square"))
+
+
+def test_without_range_no_return_reads_each_scans_range_max_and_the_database_says_so(
+    sim_db, tmp_path
+):
+    """A sensor that reaches 3.5 (a TurtleBot's LDS) reads 3.5 where nothing is in view, not the
+    simulation's 10; ``--range`` still sets it, and the summary says which one it is."""
+    layout = {**sim_db.meta["sensor_layout"], "max_range": 3.5}
+    short = Database(sim_db.sensors, sim_db.motors, sim_db.poses, {**sim_db.meta, "sensor_layout": layout})
+    bag = write_bag(short, tmp_path / "lds.bag", "rosbag1")
+    own = import_bag(bag, scan_range=True)
+    assert own.max_range == pytest.approx(3.5)
+    assert own.sensors.max() <= 3.5 + 1e-6
+    assert (own.sensors == np.float32(3.5)).any()  # far walls: no return, the scan's range
+    assert "range_max" in own.meta["source"]["range"]
+    told = import_bag(bag)
+    assert told.max_range == 10.0
+    proc = run_cli("import-bag", bag, "--out", tmp_path / "lds.npz")
+    assert proc.returncode == 0, proc.stderr
+    assert "range 3.5" in proc.stderr
+    assert "each scan's range_max" in proc.stderr

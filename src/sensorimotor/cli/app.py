@@ -16,6 +16,7 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
 from sensorimotor.errors import InputError
+from sensorimotor.sim import MAX_LASER_RANGE
 from sensorimotor.version import __version__
 
 app = typer.Typer(
@@ -125,7 +126,7 @@ PlotSvg = Annotated[bool, typer.Option(help="Also write an .svg beside the .png.
 # the bounds of the numeric options, each what a run of that size costs at most (checked as
 # the options are parsed, before any work; `--help` states them)
 MAX_STEPS = 100_000_000  # rows of a database: 1.2 GB of 5 rays, 100 x the paper's
-MAX_RANGE = 1_000.0  # units a laser reads: 20 x the largest built-in world
+MAX_RANGE = MAX_LASER_RANGE  # units a laser reads: 20 x the largest built-in world
 MAX_FOV = 6.2832  # rad: a full turn (2 pi, checked exactly by the layout)
 MAX_NOISE = 100.0  # std of the reading noise: 10 x the paper's range
 MAX_MOTOR_NOISE = 10.0  # std of the motor noise: 10 x the longest step

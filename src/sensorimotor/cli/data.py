@@ -168,7 +168,15 @@ def import_bag(
     ] = None,
     rays: RecordedRays = 5,
     fov: RecordedFov = 1.2,
-    range_: RecordedRange = 10.0,
+    range_: Annotated[
+        float | None,
+        typer.Option(
+            "--range",
+            min=0,
+            max=MAX_RANGE,
+            help="Reading of no return (units; default: each scan's range_max).",
+        ),
+    ] = None,
     rate: Annotated[
         float | None, typer.Option(min=0, max=MAX_RATE, help="Rows/s (default: the scans').")
     ] = None,
@@ -181,10 +189,11 @@ def import_bag(
     from sensorimotor.sim.database import save_database
     from sensorimotor.sim.world import load_world
 
-    layout = rosbag.ray_layout(rays, fov, range_)
+    layout = rosbag.ray_layout(rays, fov, 10.0 if range_ is None else range_)
     w = load_world(world) if world is not None else None
     check_writable(out)
-    db = rosbag.import_bag(bag, rosbag.BagTopics(scan, odom, cmd, frame), layout, rate, w)
+    topics = rosbag.BagTopics(scan, odom, cmd, frame)
+    db = rosbag.import_bag(bag, topics, layout, rate, w, scan_range=range_ is None)
     save_database(db, out)
     err_console.print(f"wrote {out}: {rosbag.summary(db)}")
 

@@ -18,6 +18,9 @@ How the rows are made:
   angle, ``round((angle - angle_min) / angle_increment)``; REP 117: ``+inf`` and a reading above
   ``range_max`` mean no return and read the range, NaN, ``-inf`` and a reading below
   ``range_min`` are invalid and drop the scan (counted); every reading is capped at the range.
+  With ``scan_range`` (``import-bag`` without ``--range``) the range is the scans' own: a scan's
+  no return reads its ``range_max``, and the layout's range is the largest (``meta.source.range``
+  says which); a sensor that reaches 3.5 m then reads 3.5 where nothing is in view, not 10.
   A scan whose angles do not reach a ray of the layout is refused (choose another ``--fov``).
 - **Poses** (``nav_msgs/Odometry``): x, y and the yaw of the orientation, interpolated linearly
   (the yaw unwrapped) at each row's scan stamp, in the odometry frame (``meta.source.frames``).
@@ -57,7 +60,7 @@ import numpy as np
 
 from sensorimotor.errors import InputError
 from sensorimotor.files import check_input, check_input_folder
-from sensorimotor.sim import bagcodec
+from sensorimotor.sim import MAX_LASER_RANGE, bagcodec
 from sensorimotor.sim.bagcodec import CMD_TYPES, ODOM_TYPES, SCAN_TYPES, rosbags_reader
 from sensorimotor.sim.core import DEFAULT_LAYOUT, MAX_RAYS, SensorLayout, spread_layout
 from sensorimotor.sim.database import Database
@@ -101,7 +104,8 @@ def summary(db: Database) -> str:
     c = src["counts"]
     return (
         f"{len(db):,} rows at {src['rate_hz']:.4g} Hz from {c['scans']:,} scans of "
-        f"{src['bag']}; dropped {c['scans_invalid']:,} invalid scans, {c['gaps']:,} gaps "
+        f"{src['bag']}, range {db.max_range:g} ({src.get('range', '--range')}); "
+        f"dropped {c['scans_invalid']:,} invalid scans, {c['gaps']:,} gaps "
         f"({c['slots_empty']:,} empty slots), {c['rows_without_odometry']:,} rows without odometry"
     )
 
@@ -310,7 +314,23 @@ def _clock(bag: Path, name: str, stamp, recv, counts: dict, clocks: dict) -> tup
     return ns, np.argsort(ns, kind="stable")
 
 
-def _rep117(bag: Path, scans, layout: SensorLayout, counts: dict) -> tuple:
+def _scan_range(bag: Path, scans) -> float:
+    """The largest ``range_max`` of the scans; InputError where one is not a positive number."""
+    top = scans.range_max
+    bad = ~(np.isfinite(top) & (top > 0))
+    if bad.any():
+        raise InputError(
+            f"{bag}: scan {int(np.argmax(bad))} has range_max {top[bad][0]} (not a positive "
+            "number): give --range"
+        )
+    if top.max() > MAX_LASER_RANGE:
+        raise InputError(
+            f"{bag}: range_max {top.max():g} is above {MAX_LASER_RANGE:g}: give --range"
+        )
+    return float(top.max())
+
+
+def _rep117(bag: Path, scans, layout: SensorLayout, counts: dict, own: bool = False) -> tuple:
     """Readings (K, R) and whether each scan is valid (REP 117: NaN and below range_min, -inf
     included, invalid; above range_max, +inf included, no return: the range); InputError for a
     scan whose angles do not reach a ray."""
@@ -331,7 +351,8 @@ def _rep117(bag: Path, scans, layout: SensorLayout, counts: dict) -> tuple:
     counts["beams_nan"] = int(nan.sum())
     counts["beams_too_close"] = int(close.sum())
     counts["beams_no_return"] = int(far[valid].sum())
-    readings = np.minimum(np.where(far | ~valid[:, None], layout.max_range, b), layout.max_range)
+    none = scans.range_max[:, None] if own else layout.max_range  # what no return reads
+    readings = np.minimum(np.where(far | ~valid[:, None], none, b), layout.max_range)
     return readings, valid
 
 
@@ -346,12 +367,14 @@ def import_bag(
     rate: float | None = None,
     world: World | None = None,
     decoder: str = "fast",
+    scan_range: bool = False,
 ) -> Database:
     """Read ``bag`` (a ROS 1 ``.bag``, a ROS 2 bag folder or ``.mcap``) into a Database: one row
     per slot of the ``rate`` grid (see the module docstring for every rule), the meta recording
     the bag, its topics and frames, and what was dropped. InputError, one line, for a bag that
     cannot be made into one. ``decoder="rosbags"`` decodes every message with rosbags (the
-    reference ``bagcodec``'s bulk reading is checked against; slower, the same database)."""
+    reference ``bagcodec``'s bulk reading is checked against; slower, the same database).
+    ``scan_range``: the range is the scans' ``range_max``, not ``layout.max_range``."""
     bag = check_bag(bag)
     if not 1 <= len(layout.angles) <= MAX_RAYS:
         raise InputError(f"--rays must be 1 to {MAX_RAYS:,}, got {len(layout.angles)}")
@@ -372,7 +395,9 @@ def import_bag(
     def seconds(ns: np.ndarray) -> np.ndarray:
         return (ns - origin) / 1e9
 
-    readings, valid = _rep117(bag, scans, layout, counts)
+    if scan_range:
+        layout = SensorLayout(layout.angles, _scan_range(bag, scans))
+    readings, valid = _rep117(bag, scans, layout, counts, own=scan_range)
     readings, valid = readings[order], valid[order]
     ts = seconds(ns[order])
     counts["scans"] = len(ts)
@@ -493,6 +518,9 @@ def import_bag(
             "start_s": origin / 1e9 + float(t[rows[0]]),
             "duration_s": float(t[rows[-1]] - t[rows[0]]),
             "beam": "nearest beam to each ray's angle",
+            "range": "each scan's range_max (no return reads it)"
+            if scan_range
+            else "--range (no return reads it)",
             "motors": how,
             "counts": counts,
         },
