@@ -144,6 +144,7 @@ MAX_CLUSTERS, MAX_CLONES, MAX_CONTEXTS = 200, 100, 16  # a map's (analysis.map.m
 MAX_ROOMS = 40  # a floor plan's rooms (sim.floorplan.MAX_ROOMS: about 5 s)
 MAX_SIZE = 200.0  # a floor plan's side (sim.floorplan.MAX_SIZE)
 MAX_DOOR = 100.0  # a doorway's width
+MAX_CLEARANCE = 100.0  # units of free width an imported map keeps (sim.rosmap.CLEARANCE: 2)
 
 ModelArg = Annotated[str, typer.Argument(help="Model: s, sm, rec-s or rec-sm.")]
 

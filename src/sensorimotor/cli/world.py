@@ -12,7 +12,7 @@ from typing import Annotated
 
 import typer
 
-from sensorimotor.cli.app import MAX_DOOR, MAX_ROOMS, MAX_SIZE, app, writes
+from sensorimotor.cli.app import MAX_CLEARANCE, MAX_DOOR, MAX_ROOMS, MAX_SIZE, app, writes
 from sensorimotor.errors import InputError
 from sensorimotor.files import check_writable, write_text_atomic
 from sensorimotor.sim import MAX_SEED
@@ -97,6 +97,17 @@ def import_world(
     ],
     out: WorldOut,
     name: Annotated[str | None, typer.Option(help="World name (default: the map's).")] = None,
+    clearance: Annotated[
+        float | None,
+        typer.Option(
+            min=0,
+            max=MAX_CLEARANCE,
+            help="Free places narrower than this (units) are closed before the walls are drawn, "
+            "so the paper's behaviour cannot enter a pocket it cannot turn out of; 0 keeps every "
+            "free cell. Default: 2 (twice the turn-around distance) for an MRPT grid, 0 for a "
+            "ROS map (its doorways are narrower).",
+        ),
+    ] = None,
 ) -> None:
     """A building map: a ROS map_server occupancy grid (.yaml + .pgm/.png) or an MRPT
     occupancy grid (.gridmap, .gridmap.gz) as wall segments."""
@@ -105,5 +116,7 @@ def import_world(
     _check_name(name)
     _check_toml(out)
     mrpt = map_yaml.name.lower().endswith((".gridmap", ".gridmap.gz"))
-    world, comment = (import_mrpt_map if mrpt else import_ros_map)(map_yaml, name)
+    importer = import_mrpt_map if mrpt else import_ros_map
+    more = {} if clearance is None else {"clearance": clearance}
+    world, comment = importer(map_yaml, name, **more)
     _write(world, out, comment)

@@ -19,6 +19,14 @@ pixel, merged into one segment along each run of such edges in a row or a column
 is the image's rectangle in metres, its lower-left corner at (0, 0): the map's ``origin`` is
 kept in the world file's comment, not in the coordinates (a world starts at 0).
 
+Clearance (``open_free``, both formats): before the walls are drawn, the free space can be
+opened by a disk of diameter ``clearance``: free places narrower than it (pockets, slots,
+corridors) become blocked, so that the paper's behaviour, which turns around whenever a reading
+is under ``TURN_THRESHOLD``, cannot walk into a place it cannot turn out of. An MRPT grid is
+opened to ``CLEARANCE`` by default (its SLAM map's narrow free slivers are dead ends: the
+shipped campus trapped the behaviour for good); a ROS map is not unless asked (a building's
+doorways are narrower than 2 m).
+
 Only the map_server keys above (and ``mode``, ``trinary`` or ``scale``/``raw`` are read as
 trinary) are parsed, by a small reader of ``key: value`` lines: numbers, strings and flat
 ``[a, b, c]`` lists; anything else is an InputError naming the file and line.
@@ -34,13 +42,19 @@ import numpy as np
 
 from sensorimotor.errors import InputError
 from sensorimotor.files import MAX_TEXT_BYTES, check_input
-from sensorimotor.sim.world import NAME_PATTERN, World, world_from_dict
+from sensorimotor.sim.core import TURN_THRESHOLD
+from sensorimotor.sim.world import MAX_SIZE, NAME_PATTERN, World, world_from_dict
 
 KEYS = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh", "mode")
 NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 MAX_IMAGE_BYTES = 1 << 30  # a map image: a building at 1 cm a pixel is far less
 FREE_THRESH = 0.196  # an MRPT grid's cell is free below this occupancy (map_server's default)
 SPECK_CELLS = 2  # blocked specks of at most this many cells inside the free region: noise
+CLEARANCE = 2.0 * TURN_THRESHOLD
+"""Units: an MRPT grid's free space is opened to this width (``open_free``). A free disk of
+radius ``TURN_THRESHOLD`` around a point: the behaviour turns there in any heading without its
+reflex firing, and from anywhere in the disk the rays aimed at its centre read at least
+2 cos(0.6) > 1 (the fan spans +-0.6 rad), so some heading always lets it walk out."""
 # pixels of a map image, read from its header before it is decoded: 5,000 x 5,000 (a 250 m
 # building at 5 cm a pixel) holds in well under 1 GB as the grids the import makes of it
 MAX_IMAGE_PIXELS = 25_000_000
@@ -155,9 +169,12 @@ def _read_pgm(data: bytes, path: Path) -> np.ndarray:
     return img.astype(np.float64) * (255.0 / maxval)
 
 
-def import_ros_map(path: str | Path, name: str | None = None) -> tuple[World, str]:
+def import_ros_map(
+    path: str | Path, name: str | None = None, clearance: float = 0.0
+) -> tuple[World, str]:
     """The world of a map_server map (see the module docstring), and a comment that says
-    where it came from (file, resolution, origin) for its world file."""
+    where it came from (file, resolution, origin) for its world file; its free space opened
+    to ``clearance`` units (``open_free``; 0, the default: every free pixel kept)."""
     path = Path(path)
     meta = read_map_yaml(path)
     resolution = _number(meta, "resolution", 0.0, path)
@@ -188,10 +205,12 @@ def import_ros_map(path: str | Path, name: str | None = None) -> tuple[World, st
     blocked = ~(occupancy < free)  # occupied or unknown
     if blocked.all():
         raise InputError(f"{path}: the map has no free pixel (free_thresh {free:g})")
-    world = grid_world(blocked[::-1], resolution, name or _stem(path), path)  # row 0: the top
+    blocked = open_free(blocked[::-1], resolution, clearance, path)  # row 0: the top
+    world = grid_world(blocked, resolution, name or _stem(path), path)
     comment = (
         f"imported from the ROS map {path.name} ({meta['image']}, {cols} x {rows} pixels of "
-        f"{resolution:g} m; origin {origin}: add it to go back to map coordinates)"
+        f"{resolution:g} m{_opened(clearance)}; origin {origin}: add it to go back to map "
+        "coordinates)"
     )
     return world, comment
 
@@ -214,7 +233,9 @@ def grid_world(blocked: np.ndarray, resolution: float, name: str, path: Path) ->
     )
 
 
-def import_mrpt_map(path: str | Path, name: str | None = None) -> tuple[World, str]:
+def import_mrpt_map(
+    path: str | Path, name: str | None = None, clearance: float = CLEARANCE
+) -> tuple[World, str]:
     """The world of an MRPT occupancy grid (``.gridmap``, ``.gridmap.gz``; read by
     ``sim.mrpt.read_gridmap``) and its world file's comment.
 
@@ -223,40 +244,87 @@ def import_mrpt_map(path: str | Path, name: str | None = None) -> tuple[World, s
     is the free space the robot can reach: the largest 4-connected free region (free cells cut
     off from it, unreachable, are blocked); blocked specks of at most ``SPECK_CELLS`` cells
     inside it (laser noise: under 0.03 m^2 at MRPT's 8 cm) are made free, so they do not become
-    four walls each. The grid is cropped to that region's bounding box and one cell around, in
-    metres (a unit a metre, as ``import-rawlog``'s default scale)."""
+    four walls each. That region is opened to ``clearance`` units (``open_free``; ``CLEARANCE``
+    by default, 0 for none) and the largest region left kept. The grid is cropped to that
+    region's bounding box and one cell around, in metres (a unit a metre, as
+    ``import-rawlog``'s default scale)."""
     from scipy import ndimage
 
     from sensorimotor.sim.mrpt import read_gridmap
 
     path = Path(path)
     grid = read_gridmap(path)
-    free = (1.0 - grid.free) < FREE_THRESH
-    labels, n = ndimage.label(free)
-    if n == 0:
+    res = float(f"{grid.resolution:.6g}")  # the float32 0.0799999982 is 0.08
+    region = _largest((1.0 - grid.free) < FREE_THRESH)
+    if region is None:
         raise InputError(f"{path}: the grid has no free cell (occupancy below {FREE_THRESH:g})")
-    sizes = np.bincount(labels.ravel())
-    sizes[0] = 0
-    region = labels == int(np.argmax(sizes))
     blocked_labels, _ = ndimage.label(~region)
     speck = np.bincount(blocked_labels.ravel()) <= SPECK_CELLS
     speck[0] = False
     region |= speck[blocked_labels]
+    region = _largest(~open_free(~region, res, clearance, path))
     ys, xs = np.nonzero(region)
     y0, y1 = max(int(ys.min()) - 1, 0), min(int(ys.max()) + 2, region.shape[0])
     x0, x1 = max(int(xs.min()) - 1, 0), min(int(xs.max()) + 2, region.shape[1])
-    blocked = ~region[y0:y1, x0:x1]
-    res = float(f"{grid.resolution:.6g}")  # the float32 0.0799999982 is 0.08
-    world = grid_world(blocked, res, name or _stem(path), path)
+    world = grid_world(~region[y0:y1, x0:x1], res, name or _stem(path), path)
     origin = [grid.x_min + x0 * res, grid.y_min + y0 * res]
     comment = (
         f"imported from the MRPT gridmap {path.name} (COccupancyGridMap2D {grid.version}, "
         f"{grid.free.shape[1]} x {grid.free.shape[0]} cells of {res:g} m; free: occupancy < "
         f"{FREE_THRESH:g}, the largest connected free region, specks of <= {SPECK_CELLS} cells "
-        f"dropped; cropped to {x1 - x0} x {y1 - y0} cells at map ({origin[0]:.3f}, "
-        f"{origin[1]:.3f}) m: add it to go back to map coordinates)"
+        f"dropped{_opened(clearance)}; cropped to {x1 - x0} x {y1 - y0} cells at map "
+        f"({origin[0]:.3f}, {origin[1]:.3f}) m: add it to go back to map coordinates)"
     )
     return world, comment
+
+
+def _largest(free: np.ndarray) -> np.ndarray | None:
+    """The largest 4-connected region of ``free`` (bool, same shape), None when none is free."""
+    from scipy import ndimage
+
+    labels, n = ndimage.label(free)
+    if n == 0:
+        return None
+    sizes = np.bincount(labels.ravel())
+    sizes[0] = 0
+    return labels == int(np.argmax(sizes))
+
+
+def _opened(clearance: float) -> str:
+    """The world file comment's words for the opening (none for 0)."""
+    return f", opened to a clearance of {clearance:g} m" if clearance > 0 else ""
+
+
+def open_free(
+    blocked: np.ndarray, resolution: float, clearance: float, path: str | Path
+) -> np.ndarray:
+    """``blocked`` (rows, cols) with its free space opened by a disk of diameter ``clearance``
+    (units; cells of ``resolution``): a free cell stays free when it lies in a disk of cells
+    (those whose centres are within ``clearance / 2`` of one cell's centre) made of free cells
+    alone; the other free cells become blocked. So free pockets, slots and corridors narrower
+    than ``clearance`` close, and what stays is the union of the free disks (a morphological
+    opening, by two Euclidean distance transforms). The grid's border counts as blocked (the
+    world's outer walls). 0 returns ``blocked`` unchanged; InputError naming ``path`` when the
+    clearance is not a number from 0 to ``MAX_SIZE`` or when nothing free is that wide."""
+    from scipy import ndimage
+
+    if not (isinstance(clearance, int | float) and 0 <= clearance <= MAX_SIZE):
+        raise InputError(
+            f"{path}: --clearance must be a number of units from 0 to {MAX_SIZE:g}, got "
+            f"{clearance!r}"
+        )
+    if clearance == 0:
+        return blocked
+    radius = clearance / 2 / resolution  # cells
+    free = np.pad(~blocked, 1)  # a blocked frame: the outer walls
+    centres = ndimage.distance_transform_edt(free) > radius  # a free disk around each
+    if not centres.any():
+        raise InputError(
+            f"{path}: no free place is {clearance:g} units wide (--clearance {clearance:g}); "
+            "lower --clearance or use 0"
+        )
+    kept = ndimage.distance_transform_edt(~centres) <= radius  # within a free disk
+    return ~kept[1:-1, 1:-1]
 
 
 def wall_segments(blocked: np.ndarray, resolution: float) -> list[list[float]]:
