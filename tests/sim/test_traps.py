@@ -1,6 +1,6 @@
 """Traps of the paper's behaviour in imported maps: a free pocket narrower than the clearance
 closes at import (``sim.rosmap.open_free``), a wide room or bay stays, every place left has a
-heading whose five rays all clear the turn-around distance.
+heading whose five rays all clear the turn-around distance; the campus figure marks a trap.
 """
 
 from __future__ import annotations
@@ -11,7 +11,10 @@ import pytest
 from conftest import assert_one_line_error, run_cli
 from sensorimotor.errors import InputError
 from sensorimotor.sim.core import SENSOR_ANGLES, TURN_THRESHOLD, read_sensors
+from sensorimotor.sim.database import generate
+from sensorimotor.sim.figures import campus_figure
 from sensorimotor.sim.mrpt import gridmap_bytes
+from sensorimotor.sim.plots import save_figure
 from sensorimotor.sim.rosmap import CLEARANCE, grid_world, import_mrpt_map, open_free
 from sensorimotor.sim.world import load_world
 from sim.test_floorplan import EXPECTED_WALLS, draw_map
@@ -114,3 +117,19 @@ def test_world_import_opens_a_ros_map_when_asked(tmp_path):
     proc = run_cli("world", "import", yaml, "--out", bad, "--clearance", "40")
     assert_one_line_error(proc, "map.yaml", "no free place is 40 units wide")
     assert not bad.exists()
+
+
+def test_the_campus_figure_marks_a_trap_and_says_from_which_step(tmp_path):
+    world = load_world("square")
+    db = generate(world, 3_000, seed=0)
+    plain = campus_figure(world, db, 1_000)
+    assert len(plain.axes[0].texts) == 0
+    fig = campus_figure(world, db, 1_000, trapped=2_500)
+    ax = fig.axes[0]
+    assert [t.get_text().splitlines()[0] for t in ax.texts] == ["trapped from step 2,500"]
+    marks = [ln for ln in ax.lines if ln.get_markeredgecolor() == "red"]
+    assert len(marks) == 1
+    assert np.allclose(np.ravel(marks[0].get_xydata()), db.poses[2_500, :2])
+    png = tmp_path / "campus.png"
+    save_figure(fig, png, dpi=60)
+    assert png.stat().st_size > 5_000

@@ -246,8 +246,12 @@ def real_path_figure(log, db: Database, every: int = 5, within: float = 20.0) ->
     return fig
 
 
-def campus_figure(world: World, db: Database, steps: int = 100_000) -> Figure:
-    """A large world's walls (thin lines) with the first ``steps`` poses of ``db`` in it."""
+def campus_figure(
+    world: World, db: Database, steps: int = 100_000, trapped: int | None = None
+) -> Figure:
+    """A large world's walls (thin lines) with the first ``steps`` poses of ``db`` in it; where
+    the agent was found trapped from row ``trapped`` on, a red ring there, labelled (the trap
+    may lie past the rows drawn)."""
     from matplotlib.collections import LineCollection
 
     steps = min(steps, len(db))
@@ -257,6 +261,22 @@ def campus_figure(world: World, db: Database, steps: int = 100_000) -> Figure:
     w = np.asarray(world.walls)
     ax.add_collection(LineCollection(w.reshape(-1, 2, 2), colors="k", linewidths=0.4))
     ax.plot(db.poses[:steps, 0], db.poses[:steps, 1], "C0-", lw=0.15, alpha=0.7)
+    if trapped is not None:
+        x, y = (float(v) for v in db.poses[trapped, :2])
+        ax.plot(x, y, "o", ms=12, mfc="none", mec="red", mew=2)
+        right = x < world.width / 2  # the label towards the middle, inside the axes
+        ax.annotate(
+            f"trapped from step {trapped:,}\n({x:.1f}, {y:.1f})",
+            (x, y),
+            xytext=(18 if right else -18, 18 if y < world.height / 2 else -18),
+            textcoords="offset points",
+            ha="left" if right else "right",
+            va="bottom" if y < world.height / 2 else "top",
+            color="red",
+            fontsize=9,
+            bbox={"boxstyle": "round", "fc": "white", "ec": "red", "alpha": 0.9},
+            arrowprops={"arrowstyle": "-", "color": "red", "lw": 1},
+        )
     ax.set_xlim(0, world.width)
     ax.set_ylim(0, world.height)
     ax.set_aspect("equal")
