@@ -70,7 +70,9 @@ def test_the_real_experiment_runs_the_log_and_a_campus_and_keeps_its_results(
     camp = found["campus"]
     assert (camp["world"], camp["steps"], camp["test_rows"]) == ("yard", 3000, 300)
     assert camp["size"] == [31.0, 21.0]  # the yard and one cell around
-    assert camp["walls"] == 8  # the yard's four sides and the building's
+    # the building's four sides, the yard's and two steps at each of its corners: the yard is
+    # opened to the clearance (2 m, 4 cells), which rounds its corners off
+    assert (camp["walls"], camp["clearance"]) == (24, 2.0)
     assert camp["trapped_from"] is None  # the agent roams the yard to the end
     for m in camp["models"].values():
         assert math.isfinite(m["error"])
@@ -88,6 +90,8 @@ def test_the_real_experiment_runs_the_log_and_a_campus_and_keeps_its_results(
     md = to_markdown(ex.sections(rep, {"real": found}), tmp_path)
     assert "## Real data" in md
     assert "**23 rows**" in md
+    assert "opened to a clearance of 2 m" in md
+    assert "trapped" not in md
     assert "none beats copying the last reading" in md  # 1-epoch models do not
     assert "none of the campus-trained models beats copying" in md
     for kind in PAPER:
@@ -101,3 +105,6 @@ def test_the_real_experiment_needs_square(tmp_path):
     ctx = _context(tmp_path, {}, [], worlds=("rooms1",))
     with pytest.raises(InputError, match="add square to --worlds"):
         real.run(ctx)
+    with pytest.raises(InputError, match="add square to --worlds"):  # before any stage
+        ex.check(SimpleNamespace(experiments=("real",), worlds=("rooms1",)))
+    ex.check(SimpleNamespace(experiments=("real",), worlds=("square", "rooms1")))

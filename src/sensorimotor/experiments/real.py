@@ -9,16 +9,19 @@ its inputs:
   rays, a unit a metre, poses from odometry, walls unknown); the reproduction's Square-trained
   seed-0 encoder of each kind tested on its test split beside the two baselines
   (``eval/square__{kind}__s0__on__sena.json``), and ``analyze raw`` of it (``analysis/raw__sena``);
-- **the campus**: ``world import`` of the campus grid (``campus.toml``), a database of the
+- **the campus**: ``world import`` of the campus grid (``campus.toml``; its free space opened
+  to ``sim.rosmap.CLEARANCE``, so no pocket traps the behaviour), a database of the
   paper's behaviour in it (``data/campus.npz``, ``CAMPUS_STEPS`` by scale, seed 0), each kind
   trained on it with the reproduction's epoch caps and patience (``runs/campus__{kind}__s0``),
   tested on its test split and on the real recording (``eval/campus__{kind}__s0.json``), and
-  analysed with the raw readings (``analysis/``). The campus has 56,230 walls: the analysis'
+  analysed with the raw readings (``analysis/``). The campus has 19,948 walls: the analysis'
   event truth (corners and wall ends in view) is quadratic in the walls, so the campus is
   analysed with its walls withheld (``data/campus_walls_withheld.npz``, the same rows): the
   position probes and "nothing in view" stay, corners and wall ends are n/a;
 - **figures** (``sim.figures``): the real path with its scans (``real_path.png``) and the campus
-  with a simulated trajectory (``campus_trajectory.png``).
+  with a simulated trajectory (``campus_trajectory.png``; a trap, if one is found, marked).
+
+``check(rep)`` refuses a reproduction without ``square`` before the paper's stages start.
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ from sensorimotor.pipeline.stages import (
 )
 from sensorimotor.report.document import Block, h, image, p, table
 from sensorimotor.sim import mrpt
+from sensorimotor.sim.rosmap import CLEARANCE
 from sensorimotor.version import __version__
 
 LOG, GRIDMAP = mrpt.SENA_LOG, mrpt.CAMPUS_MAP  # the shipped recording and campus grid
@@ -119,13 +123,19 @@ def _run(jobs: list) -> list:
     return [job for job in jobs if job is not None]
 
 
-def run(ctx) -> dict:
-    """Every stage (cached), the figures, and the numbers of the section."""
-    rep = ctx.rep
+def check(rep) -> None:
+    """Refuse, before any stage, a reproduction that does not train on square (the recording
+    meets the Square-trained encoders)."""
     if TRAINED_ON not in tuple(rep.worlds):
         raise InputError(
             "experiment real: needs the models trained on square; add square to --worlds"
         )
+
+
+def run(ctx) -> dict:
+    """Every stage (cached), the figures, and the numbers of the section."""
+    rep = ctx.rep
+    check(rep)
     d = ctx.dir
     scale = getattr(rep.scale, "name", "")
     steps = CAMPUS_STEPS.get(scale, CAMPUS_STEPS["quick"])
@@ -136,7 +146,9 @@ def run(ctx) -> dict:
     # 1. the recording and the campus world
     sena, world = d / f"{REAL}.npz", d / f"{CAMPUS}.toml"
     sena_key = stage_key({"log": file_hash(LOG), "version": __version__})
-    world_key = stage_key({"map": file_hash(GRIDMAP), "version": __version__})
+    world_key = stage_key(
+        {"map": file_hash(GRIDMAP), "clearance": CLEARANCE, "version": __version__}
+    )
     jobs = [
         None
         if _kept(sena, sena_key)
@@ -200,6 +212,8 @@ def _figures(d: Path, sena: Path, world: Path, campus: Path, hashes: dict) -> di
     from sensorimotor.sim.world import load_world
 
     names = {"real": "real_path.png", "campus": "campus_trajectory.png"}
+    campus_db = load_database(campus)
+    trapped = trapped_from(campus_db)
     key = stage_key(
         {
             "log": file_hash(LOG),
@@ -207,6 +221,7 @@ def _figures(d: Path, sena: Path, world: Path, campus: Path, hashes: dict) -> di
             "world": file_hash(world),
             "campus": hashes[campus],
             "steps": FIGURE_STEPS,
+            "trapped": trapped,
             "version": __version__,
         }
     )
@@ -214,7 +229,7 @@ def _figures(d: Path, sena: Path, world: Path, campus: Path, hashes: dict) -> di
     if read_key(mark) != key or not all((d / n).exists() for n in names.values()):
         fig = real_path_figure(LOG, load_database(sena))
         save_figure(fig, d / names["real"], dpi=110)
-        fig = campus_figure(load_world(world), load_database(campus), FIGURE_STEPS)
+        fig = campus_figure(load_world(world), campus_db, FIGURE_STEPS, trapped)
         save_figure(fig, d / names["campus"], dpi=110)
         write_json_atomic(mark, {"key": key})
     return names
@@ -249,7 +264,8 @@ def trapped_from(db) -> int | None:
     """The row from which the agent never moves again (``d`` 0 to the end), when that is
     ``TRAPPED_ROWS`` rows or more: the paper's behaviour turns around whenever a reading is
     under 1 unit, so a pocket of a real map where no heading clears all five rays traps it
-    for good; None when it moves to near the end."""
+    for good (the import's clearance opening closes such pockets: this checks that it did);
+    None when it moves to near the end."""
     import numpy as np
 
     moved = np.nonzero(np.asarray(db.motors[:, 0]) > 0)[0]
@@ -322,6 +338,7 @@ def _numbers(d, kinds, sena, world, campus, square, on_real, runs, evals, steps,
             if None not in (m["on_real"], copy) and m["on_real"] < copy
         ],
         "map": GRIDMAP.name,
+        "clearance": CLEARANCE,
         "world": w.name,
         "walls": len(w.walls),
         "size": [_num(w.width), _num(w.height)],
@@ -463,14 +480,20 @@ def section(rep, found: dict) -> list[Block]:
 
     b.append(h(3, "The campus world, trained on like the paper's worlds"))
     width, height = camp["size"]
+    opened = (
+        f", opened to a clearance of {camp['clearance']:g} m: narrower places, where the "
+        "behaviour could walk into a pocket it cannot turn out of, are closed"
+        if camp.get("clearance")
+        else ""
+    )
     b.append(
         p(
             f"`world import` of the grid gives `{camp['world']}`, {_f(width, 1)} x {_f(height, 1)} m "
             f"with {camp['walls']:,} walls (a cell is free when its occupancy is below 0.196; the "
-            f"largest connected free region). A database of {camp['steps']:,} steps of the paper's "
-            "behaviour in it (seed 0) trains each kind (seed 0, the reproduction's epoch caps and "
-            f"patience); tested on its test split ({camp['test_rows']:,} rows) and, in metres like "
-            "the campus, on the real recording's."
+            f"largest connected free region{opened}). A database of {camp['steps']:,} steps of "
+            "the paper's behaviour in it (seed 0) trains each kind (seed 0, the reproduction's "
+            f"epoch caps and patience); tested on its test split ({camp['test_rows']:,} rows) "
+            "and, in metres like the campus, on the real recording's."
         )
     )
     if camp.get("trapped_from") is not None:
