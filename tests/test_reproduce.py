@@ -1,5 +1,6 @@
 """The front door: a model kind registered in one place is trained, tabulated, analysed and
-reported by ``reproduce`` with nothing else edited."""
+reported by ``reproduce`` with nothing else edited; an experiment whose preconditions fail
+stops it in one line before any stage."""
 
 from __future__ import annotations
 
@@ -7,6 +8,8 @@ import json
 
 import pytest
 
+from conftest import assert_one_line_error, run_cli
+from sensorimotor.errors import InputError
 from sensorimotor.learn import models
 from sensorimotor.reproduce import reproduce
 
@@ -35,3 +38,15 @@ def test_a_taken_name_cannot_be_registered_twice():
         models.register(models.Kind("sm", "x", "x", False, True))
     with pytest.raises(ValueError, match="already taken"):
         models.register(models.Kind("raw", "x", "x", False, False))
+
+
+def test_an_experiment_missing_its_world_fails_in_one_line_before_any_stage(tmp_path):
+    out = tmp_path / "out"
+    args = ["reproduce", "--scale", "smoke", "--worlds", "rooms1", "--experiment", "real"]
+    proc = run_cli(*args, "--out", out)
+    assert_one_line_error(proc, "experiment real", "add square to --worlds")
+    assert "stage" not in proc.stdout + proc.stderr  # no stage started
+    assert not out.exists()  # nothing generated, trained or written
+    with pytest.raises(InputError, match=r"experiment walls: .* add square to --worlds"):
+        reproduce(out, scale="smoke", worlds=["rooms2"], experiments=["walls", "real"])
+    assert not out.exists()

@@ -46,21 +46,20 @@ def reproduce(
     jobs at a time (None: every core here, or every CPU of the Ray cluster).
     ``experiments``: the experiments past the paper to run after its stages (names of
     ``experiments.EXPERIMENTS``; None: ``experiments.DEFAULT``)."""
+    rep = _plan(out, scale, seeds, device, worlds, experiments)
+    gpus = GPU_SHARE if backend == "ray" and rep.device == "cuda" else 0.0
+    with job_runner(backend, address, workers, gpus) as (runner, workers):
+        rep.workers = workers
+        return _reproduce(rep, log, argv, runner)
+
+
+def _plan(out, scale, seeds, device, worlds, experiments) -> Reproduction:
+    """The reproduction asked for, every option and each experiment's preconditions
+    (``experiments.check``) checked before a job runs or a folder is made: InputError, one
+    line. Its ``workers`` is set by the runner."""
     from sensorimotor.learn.train import resolve_device
 
     chosen = ex.check_experiments(experiments)
-    gpus = GPU_SHARE if backend == "ray" and resolve_device(device) == "cuda" else 0.0
-    with job_runner(backend, address, workers, gpus) as (runner, workers):
-        return _reproduce(out, scale, seeds, device, workers, log, argv, worlds, runner, chosen)
-
-
-def _reproduce(
-    out, scale, seeds, device, workers, log, argv, worlds, run_jobs, experiments=()
-) -> Reproduction:
-    """``reproduce`` with its jobs run by ``run_jobs`` (``jobs.workers.run_jobs``'s signature)."""
-    from sensorimotor.learn.train import resolve_device
-    from sensorimotor.report.document import write_report
-
     if scale not in SCALES:
         raise InputError(f"unknown scale {scale!r}: use one of {', '.join(SCALES)}")
     sc = SCALES[scale]
@@ -68,16 +67,26 @@ def _reproduce(
     if seeds < 1:
         raise InputError(f"--seeds must be at least 1, got {seeds}")
     trained = check_worlds(worlds)
-    device = resolve_device(device)  # before any folder is made
+    device = resolve_device(device)
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: is a file, not an output folder")
+    rep = Reproduction(out, sc, seeds, device, 0, trained, experiments=chosen)
+    ex.check(rep)
+    return rep
+
+
+def _reproduce(rep: Reproduction, log, argv, run_jobs) -> Reproduction:
+    """``reproduce`` of the planned ``rep`` with its jobs run by ``run_jobs``
+    (``jobs.workers.run_jobs``'s signature)."""
+    from sensorimotor.report.document import write_report
+
+    out, workers = rep.out, rep.workers
     try:
         for sub in FOLDERS:
             (out / sub).mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise InputError(f"{out}: cannot create the output folder ({err.strerror})") from None
-    rep = Reproduction(out, sc, seeds, device, workers, trained, experiments=tuple(experiments))
     t_start = time.perf_counter()
 
     def progress(name: str, message: str) -> None:

@@ -81,3 +81,17 @@ def test_a_failed_job_is_raised_as_the_experiments_one_line(tmp_path):
         ctx(JobFailure("b", InputError("cannot square -1"))).run([])
     with pytest.raises(RuntimeError, match=r"^echo: c failed: x$"):
         ctx(JobFailure("c", ZeroDivisionError("x"))).run([])
+
+
+def test_each_chosen_experiments_check_runs_before_anything(echo):
+    ex.check(SimpleNamespace(experiments=("echo",)))  # no check(rep): nothing to refuse
+
+    def check(rep):
+        if rep.value < 0:
+            raise InputError("experiment echo: needs a value of 0 or more")
+
+    echo.check = check
+    ex.check(SimpleNamespace(experiments=("echo",), value=1))
+    ex.check(SimpleNamespace(experiments=(), value=-1))  # not chosen: not checked
+    with pytest.raises(InputError, match="needs a value"):
+        ex.check(SimpleNamespace(experiments=("echo",), value=-1))

@@ -3,12 +3,17 @@
 Each runs after the paper's stages and on their outputs (databases, runs, analyses), keeps its
 files under ``OUT/NAME/`` cached by a hash of their inputs (a rerun redoes only what changed; a
 killed run loses nothing finished), and adds its own section to the report. An experiment is a
-module named in ``EXPERIMENTS`` with two functions:
+module named in ``EXPERIMENTS`` with two functions, and a third if it needs one:
 
     run(ctx: Context) -> dict                  its jobs (through ctx.run_jobs); its numbers,
                                                strict JSON, which reproduce writes to
                                                OUT/NAME/NAME.json
     section(rep, found: dict) -> list[Block]   its report section, read from those numbers
+    check(rep) -> None                         optional: an InputError (one line) when the
+                                               reproduction cannot give it what it needs (a
+                                               world not in --worlds, an extra not installed);
+                                               reproduce calls it before the paper's stages,
+                                               so a long run does not fail at its end
 
 Its module must not import ``sensorimotor.reproduce`` (it is handed the ``pipeline.paper.Reproduction``):
 imports point one way.
@@ -112,6 +117,15 @@ def check_experiments(names: Sequence[str] | None) -> tuple[str, ...]:
 
 def module(name: str) -> ModuleType:
     return EXPERIMENTS[name].load()
+
+
+def check(rep: Reproduction) -> None:
+    """Each of ``rep.experiments``' preconditions, its module's ``check(rep)`` where it has
+    one: called before any stage, so a missing world fails in one line at once."""
+    for name in rep.experiments:
+        precondition = getattr(module(name), "check", None)
+        if precondition is not None:
+            precondition(rep)
 
 
 def run_experiment(ctx: Context) -> dict:

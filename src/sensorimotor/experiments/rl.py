@@ -92,16 +92,29 @@ def plan_for(scale_name: str) -> Plan:
     return PLANS.get(scale_name, PLANS["quick"])
 
 
+def _check_world(rep) -> None:
+    if WORLD not in tuple(rep.worlds):
+        raise InputError(
+            "experiment rl: needs the encoders trained on rooms1; add rooms1 to --worlds"
+        )
+
+
+def check(rep) -> None:
+    """Refuse, before any stage, a reproduction without rooms1 in --worlds or without the
+    ``[rl]`` extra (stable-baselines3): the agents learn on the Rooms1 encoders."""
+    from sensorimotor.rl import check_extra
+
+    _check_world(rep)
+    check_extra()
+
+
 def configs(rep) -> dict:
     """``{task: RLConfig}`` of the grid: encoders from ``rep``'s Rooms1 runs, sized by
     ``rep.scale``. InputError (one line) when Rooms1 was not trained or a run is missing."""
     from sensorimotor.rl.features import run_folder
     from sensorimotor.rl.runner import RLConfig, worlds_holding
 
-    if WORLD not in tuple(rep.worlds):
-        raise InputError(
-            "experiment rl: needs the encoders trained on rooms1; add rooms1 to --worlds"
-        )
+    _check_world(rep)
     kinds = encoders()
     runs = Path(rep.run_dir(WORLD, kinds[0], 0)).parent
     for model in kinds:

@@ -223,14 +223,20 @@ def _family_job(runs: list[str], world: str, layouts: int, seeds: list[int], ste
     return result
 
 
-def run(ctx) -> dict:
-    """Each family's cells (``wall_sensitivity``) of the reproduction's Square-trained runs,
-    a job per world, each kept in ``OUT/walls/{world}.json`` by its key."""
-    rep = ctx.rep
+def check(rep) -> None:
+    """Refuse, before any stage, a reproduction that does not train on square (the family's
+    worlds test the Square-trained runs)."""
     if TRAINED_ON not in tuple(rep.worlds):
         raise InputError(
             "experiment walls: needs the models trained on square; add square to --worlds"
         )
+
+
+def run(ctx) -> dict:
+    """Each family's cells (``wall_sensitivity``) of the reproduction's Square-trained runs,
+    a job per world, each kept in ``OUT/walls/{world}.json`` by its key."""
+    rep = ctx.rep
+    check(rep)
     runs = [str(rep.run_dir(w, m, s)) for w, m, s in rep.runs if w == TRAINED_ON]
     layouts, seeds = FAMILIES.get(getattr(rep.scale, "name", ""), FAMILIES["quick"])
     steps = rep.scale.steps
