@@ -324,9 +324,7 @@ def _scan_range(bag: Path, scans) -> float:
             "number): give --range"
         )
     if top.max() > MAX_LASER_RANGE:
-        raise InputError(
-            f"{bag}: range_max {top.max():g} is above {MAX_LASER_RANGE:g}: give --range"
-        )
+        raise InputError(f"{bag}: range_max {top.max():g} > {MAX_LASER_RANGE:g}: give --range")
     return float(top.max())
 
 
