@@ -152,7 +152,9 @@ def _state_ignored(monkeypatch):
     """A recurrent encoder that starts every chunk from zero: one chunk alone agrees."""
     encode = models_mod.SensorimotorEncoder.encode
     monkeypatch.setattr(
-        models_mod.SensorimotorEncoder, "encode", lambda self, x, state=None: encode(self, x)
+        models_mod.SensorimotorEncoder,
+        "encode",
+        lambda self, x, state=None, motors=None: encode(self, x, None, motors),
     )
 
 

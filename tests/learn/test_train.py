@@ -56,6 +56,7 @@ class StateSpy(torch.nn.Module):
     def __init__(self, model):
         super().__init__()
         self.model, self.seen, self.returned = model, [], []
+        self.config = model.config
 
     def forward(self, s, m, state=None):
         self.seen.append(None if state is None else tuple(t.clone() for t in state))

@@ -58,7 +58,8 @@ def claim_numbers(analyses: dict[str, dict], runs: list[tuple[str, str, int]], w
     for world in worlds:
         out[world] = {}
         names = {"raw": [f"raw__{world}"]}
-        for kind in KINDS:
+        present = {m for _, m, _ in runs}
+        for kind in (k for k in KINDS if k in present or KINDS[k].paper):
             names[kind] = [run_name(w, m, s) for w, m, s in runs if w == world and m == kind]
         for kind, keys in names.items():
             vals: dict[str, list] = {

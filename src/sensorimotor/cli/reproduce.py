@@ -28,7 +28,8 @@ def reproduce(
         typer.Option(
             help="smoke: 20,000-step databases, 2 epochs a model, 1 seed (under a minute; it "
             "tests the pipeline, not the paper). quick: 200,000 steps, epochs capped at 10 (S, "
-            "SM), 30 (Rec-S), 80 (Rec-SM), 1 seed (2-4 min on 2 CPU cores; the report names "
+            "SM), 30 (Rec-S), 80 (Rec-SM), 40 (Rec-SMA, --experiment memory), 1 seed (2-4 min "
+            "on 2 CPU cores; the report names "
             "the claims it is too small for). paper: the paper's protocol, 1,000,000 steps, "
             "early stopping, 5 seeds (32-53 min on 2 CPU cores, by CPU: docs/benchmarks.md)."
         ),
@@ -68,7 +69,9 @@ def reproduce(
             "with its own report section: map (a map learned from the cells), scaling (more "
             "rays, noise, unseen floor plans), rl (PPO agents on the Rooms1 encoders), walls "
             "(Table I over wall layouts that fit the paper's sentences), real (a real robot's "
-            "log and a real campus map). Default: none."
+            "log and a real campus map), memory (Rec-SMA, a memory that reads the motor "
+            "commands, and its ablations: do they know the room and the position?). Default: "
+            "none."
         ),
     ] = None,
 ) -> None:
