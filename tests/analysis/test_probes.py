@@ -51,3 +51,13 @@ def test_analyze_writes_the_place_probes_into_metrics(rooms1_db_path, square_db_
             assert 0 <= probes["room"]["balanced_accuracy"] <= 1
         assert set(probes["position"]["r2"]) == {"x", "y"}
         assert probes["position"]["median_error"] > 0
+
+
+def test_analyze_prints_the_place_probes(rooms1_db_path, tmp_path):
+    from conftest import run_cli
+
+    proc = run_cli("analyze", "raw", "--data", rooms1_db_path, "--out", tmp_path / "a")
+    assert proc.returncode == 0, proc.stderr
+    text = " ".join(proc.stdout.split())
+    assert "place probes (fitted on" in text
+    assert "balanced accuracy (chance 0.333)" in text

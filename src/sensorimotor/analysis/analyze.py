@@ -275,6 +275,21 @@ def analyze_files(
     return AnalyzeResult(metrics, files)
 
 
+def probe_lines(probes: dict | None) -> list[str]:
+    """The place probes (``probe_places``) as printable lines."""
+    if probes is None:
+        return ["  place probes: n/a (a split is shorter than the burn-in)"]
+    room, pos, knn = probes["room"], probes["position"], probes["knn_mse"]
+    return [
+        f"  place probes (fitted on {probes['fit_steps']:,} training steps, scored on "
+        f"{probes['scored_steps']:,} test steps after {probes['burn_in']}): room "
+        + ("n/a (no rooms)" if room is None else
+           f"{room['balanced_accuracy']:.3f} balanced accuracy (chance {room['chance']:.3f})")
+        + f"; R^2 x {pos['r2']['x']:.3f}, y {pos['r2']['y']:.3f}; median position error "
+        f"{pos['median_error']:.1f}; KNN-MSE {knn['value']:.3f} (chance {knn['chance']:.3f})"
+    ]
+
+
 def summary_lines(metrics: dict) -> list[str]:
     """The main numbers of one ``analyze_representation`` result, as printable lines."""
     m = metrics

@@ -53,6 +53,7 @@ def analyze(
     an earlier analysis there that this one does not write.
     """
     from sensorimotor.analysis import analyze_files, summary_lines
+    from sensorimotor.analysis.analyze import probe_lines
 
     with err_console.status(f"analysing {run} on {data}"):
         result = analyze_files(run, data, out, fit_data, seed, svg=svg)
@@ -64,6 +65,7 @@ def analyze(
     else:
         print(f"{m['model']} on {m['data']}:")
     print("\n".join(summary_lines(m["analysis"])))
+    print("\n".join(probe_lines(m["probes"])))
     err_console.print("wrote " + ", ".join(str(p) for p in result.files), soft_wrap=True)
 
 
