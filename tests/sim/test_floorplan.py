@@ -131,6 +131,18 @@ def test_world_import_from_the_command_line(tmp_path):
     proc = run_cli("world", "import", draw_map(tmp_path), "--out", out)
     assert proc.returncode == 0, proc.stderr
     assert {tuple(w) for w in load_world(out).walls.tolist()} == EXPECTED_WALLS
+    assert "units: 1 unit = 1 m" in proc.stderr  # it says what a unit is
+    scaled = tmp_path / "scaled.toml"
+    proc = run_cli("world", "import", draw_map(tmp_path), "--out", scaled, "--scale", "2")
+    assert proc.returncode == 0, proc.stderr
+    assert "1 unit = 0.5 m" in proc.stderr
+    assert {tuple(w) for w in load_world(scaled).walls.tolist()} == {
+        tuple(2 * v for v in w) for w in EXPECTED_WALLS
+    }
+    assert_one_line_error(
+        run_cli("world", "import", draw_map(tmp_path), "--out", tmp_path / "z.toml", "--scale", "0"),
+        "--scale must be a positive number",
+    )
     yaml = tmp_path / "map.yaml"
     yaml.write_text(yaml.read_text().replace("resolution: 0.5", "resolution: -0.5"))
     other = tmp_path / "other.toml"

@@ -12,7 +12,15 @@ from typing import Annotated
 
 import typer
 
-from sensorimotor.cli.app import MAX_CLEARANCE, MAX_DOOR, MAX_ROOMS, MAX_SIZE, app, writes
+from sensorimotor.cli.app import (
+    MAX_CLEARANCE,
+    MAX_DOOR,
+    MAX_ROOMS,
+    MAX_SCALE,
+    MAX_SIZE,
+    app,
+    writes,
+)
 from sensorimotor.errors import InputError
 from sensorimotor.files import check_writable, write_text_atomic
 from sensorimotor.sim import MAX_SEED
@@ -108,15 +116,25 @@ def import_world(
             "ROS map (its doorways are narrower).",
         ),
     ] = None,
+    scale: Annotated[
+        float,
+        typer.Option(
+            min=0,
+            max=MAX_SCALE,
+            help="World units a metre of the map (1: a unit is a metre; the paper's robot sees "
+            "10 units and steps at most 1).",
+        ),
+    ] = 1.0,
 ) -> None:
     """A building map: a ROS map_server occupancy grid (.yaml + .pgm/.png) or an MRPT
     occupancy grid (.gridmap, .gridmap.gz) as wall segments."""
-    from sensorimotor.sim.rosmap import import_mrpt_map, import_ros_map
+    from sensorimotor.sim.rosmap import import_mrpt_map, import_ros_map, units
 
     _check_name(name)
     _check_toml(out)
     mrpt = map_yaml.name.lower().endswith((".gridmap", ".gridmap.gz"))
     importer = import_mrpt_map if mrpt else import_ros_map
     more = {} if clearance is None else {"clearance": clearance}
-    world, comment = importer(map_yaml, name, **more)
+    world, comment = importer(map_yaml, name, scale=scale, **more)
     _write(world, out, comment)
+    typer.echo(f"units: {units(scale)}", err=True)

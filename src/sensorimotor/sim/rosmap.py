@@ -170,12 +170,14 @@ def _read_pgm(data: bytes, path: Path) -> np.ndarray:
 
 
 def import_ros_map(
-    path: str | Path, name: str | None = None, clearance: float = 0.0
+    path: str | Path, name: str | None = None, clearance: float = 0.0, scale: float = 1.0
 ) -> tuple[World, str]:
     """The world of a map_server map (see the module docstring), and a comment that says
-    where it came from (file, resolution, origin) for its world file; its free space opened
-    to ``clearance`` units (``open_free``; 0, the default: every free pixel kept)."""
+    where it came from (file, resolution, origin, units) for its world file; ``scale`` units
+    a metre (1: a unit is a metre); its free space opened to ``clearance`` units
+    (``open_free``; 0, the default: every free pixel kept)."""
     path = Path(path)
+    _check_scale(scale, path)
     meta = read_map_yaml(path)
     resolution = _number(meta, "resolution", 0.0, path)
     if resolution <= 0:
@@ -205,14 +207,24 @@ def import_ros_map(
     blocked = ~(occupancy < free)  # occupied or unknown
     if blocked.all():
         raise InputError(f"{path}: the map has no free pixel (free_thresh {free:g})")
-    blocked = open_free(blocked[::-1], resolution, clearance, path)  # row 0: the top
-    world = grid_world(blocked, resolution, name or _stem(path), path)
+    blocked = open_free(blocked[::-1], resolution * scale, clearance, path)  # row 0: the top
+    world = grid_world(blocked, resolution * scale, name or _stem(path), path)
     comment = (
         f"imported from the ROS map {path.name} ({meta['image']}, {cols} x {rows} pixels of "
-        f"{resolution:g} m{_opened(clearance)}; origin {origin}: add it to go back to map "
-        "coordinates)"
+        f"{resolution:g} m{_opened(clearance)}; origin {origin} m: add it to go back to map "
+        f"coordinates; {units(scale)})"
     )
     return world, comment
+
+
+def units(scale: float) -> str:
+    """What a world unit is, for a world made from a map in metres at ``scale`` units a metre."""
+    return f"1 unit = {1 / scale:g} m (--scale {scale:g} units a metre)"
+
+
+def _check_scale(scale: float, path: Path) -> None:
+    if not (isinstance(scale, int | float) and 0 < scale <= MAX_SIZE and math.isfinite(scale)):
+        raise InputError(f"{path}: --scale must be a positive number of units a metre, got {scale!r}")
 
 
 def _stem(path: Path) -> str:
@@ -234,7 +246,7 @@ def grid_world(blocked: np.ndarray, resolution: float, name: str, path: Path) ->
 
 
 def import_mrpt_map(
-    path: str | Path, name: str | None = None, clearance: float = CLEARANCE
+    path: str | Path, name: str | None = None, clearance: float = CLEARANCE, scale: float = 1.0
 ) -> tuple[World, str]:
     """The world of an MRPT occupancy grid (``.gridmap``, ``.gridmap.gz``; read by
     ``sim.mrpt.read_gridmap``) and its world file's comment.
@@ -246,15 +258,17 @@ def import_mrpt_map(
     inside it (laser noise: under 0.03 m^2 at MRPT's 8 cm) are made free, so they do not become
     four walls each. That region is opened to ``clearance`` units (``open_free``; ``CLEARANCE``
     by default, 0 for none) and the largest region left kept. The grid is cropped to that
-    region's bounding box and one cell around, in metres (a unit a metre, as
-    ``import-rawlog``'s default scale)."""
+    region's bounding box and one cell around, ``scale`` units a metre (1, the default: a unit
+    a metre, as ``import-rawlog``'s default scale)."""
     from scipy import ndimage
 
     from sensorimotor.sim.mrpt import read_gridmap
 
     path = Path(path)
+    _check_scale(scale, path)
     grid = read_gridmap(path)
-    res = float(f"{grid.resolution:.6g}")  # the float32 0.0799999982 is 0.08
+    metres = float(f"{grid.resolution:.6g}")  # the float32 0.0799999982 is 0.08
+    res = metres * scale  # units a cell
     region = _largest((1.0 - grid.free) < FREE_THRESH)
     if region is None:
         raise InputError(f"{path}: the grid has no free cell (occupancy below {FREE_THRESH:g})")
@@ -267,13 +281,14 @@ def import_mrpt_map(
     y0, y1 = max(int(ys.min()) - 1, 0), min(int(ys.max()) + 2, region.shape[0])
     x0, x1 = max(int(xs.min()) - 1, 0), min(int(xs.max()) + 2, region.shape[1])
     world = grid_world(~region[y0:y1, x0:x1], res, name or _stem(path), path)
-    origin = [grid.x_min + x0 * res, grid.y_min + y0 * res]
+    origin = [grid.x_min + x0 * metres, grid.y_min + y0 * metres]
     comment = (
         f"imported from the MRPT gridmap {path.name} (COccupancyGridMap2D {grid.version}, "
-        f"{grid.free.shape[1]} x {grid.free.shape[0]} cells of {res:g} m; free: occupancy < "
+        f"{grid.free.shape[1]} x {grid.free.shape[0]} cells of {metres:g} m; free: occupancy < "
         f"{FREE_THRESH:g}, the largest connected free region, specks of <= {SPECK_CELLS} cells "
         f"dropped{_opened(clearance)}; cropped to {x1 - x0} x {y1 - y0} cells at map "
-        f"({origin[0]:.3f}, {origin[1]:.3f}) m: add it to go back to map coordinates)"
+        f"({origin[0]:.3f}, {origin[1]:.3f}) m: add it to go back to map coordinates; "
+        f"{units(scale)})"
     )
     return world, comment
 
