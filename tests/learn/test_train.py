@@ -497,3 +497,17 @@ def test_training_flushes_subnormals_and_restores_the_mode(
     train(square_db_path, tmp_path / "run", config, on_epoch=record)
     assert during == [False]  # flushed while training
     assert _subnormal_survives()  # and as before once it returns
+
+
+def test_a_kill_between_checkpoint_and_best_weights_is_mended_on_resume(square_db_path, tmp_path):
+    """The first epoch's checkpoint written, its model.pt not yet: resume writes the best
+    weights from the checkpoint and goes on (a sweep killed there refused to resume)."""
+    config = TrainConfig(model="sm", max_epochs=1)
+    train(square_db_path, tmp_path / "a", config)
+    (tmp_path / "a" / "model.pt").unlink()
+    (tmp_path / "a" / "result.json").unlink()
+    result = train(square_db_path, tmp_path / "a", config, resume=True)  # nothing left to train
+    assert result.epochs == 1
+    saved = torch.load(tmp_path / "a" / "model.pt", weights_only=True)
+    kept = torch.load(tmp_path / "a" / "checkpoint.pt", weights_only=True)["model"]
+    assert all(torch.equal(saved[k], kept[k]) for k in kept)

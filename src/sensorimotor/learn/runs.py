@@ -399,7 +399,20 @@ def load_checkpoint(
         opt.load_state_dict(ckpt["optimizer"])
     except Exception as err:
         raise InputError(f"{ckpt_path}: corrupt checkpoint ({_first_lines(err)})") from None
+    if history[-1].best and not _holds(out / "model.pt", model):
+        _torch_save(model.state_dict(), out / "model.pt")  # killed before it: written now
     return stopper, history, epoch + 1, seconds
+
+
+def _holds(path: Path, model: torch.nn.Module) -> bool:
+    """Whether ``path`` holds ``model``'s weights exactly."""
+    if not path.is_file():
+        return False
+    try:
+        saved = torch.load(path, map_location="cpu", weights_only=True)
+        return all(torch.equal(saved[k], v.cpu()) for k, v in model.state_dict().items())
+    except Exception:  # unreadable or another model: the checkpoint's weights replace it
+        return False
 
 
 def _checked_progress(ckpt: dict) -> tuple[EarlyStopping, list[EpochRecord], int, float]:
@@ -471,9 +484,10 @@ def save_epoch(
     stopper: EarlyStopping,
     history: list[EpochRecord],
 ) -> None:
-    """After an epoch: ``model.pt`` if it is the best so far, ``checkpoint.pt``, ``history.csv``."""
-    if history[-1].best:
-        _torch_save(model.state_dict(), out / "model.pt")
+    """After an epoch: ``checkpoint.pt``, then ``model.pt`` if it is the best so far, then
+    ``history.csv``. A kill after the checkpoint leaves ``model.pt`` an epoch behind, which
+    ``load_checkpoint`` mends (the checkpoint holds that epoch's weights); the other order left
+    a first epoch's ``model.pt`` without a checkpoint, a run resume must refuse."""
     _torch_save(
         {
             "model": model.state_dict(),
@@ -485,6 +499,8 @@ def save_epoch(
         },
         out / "checkpoint.pt",
     )
+    if history[-1].best:
+        _torch_save(model.state_dict(), out / "model.pt")
     _write_text(out / "history.csv", _history_csv(history))
 
 
