@@ -206,7 +206,8 @@ def analyze_files(
     run, db, fit_db, out = load_inputs(run, data, fit_data, out, OUTPUTS)
     source = _analyze(run, fit_db, seed) if fit_db is not None else None
     result = _analyze(run, db, seed, source)
-    probes = probe_places(run, db)
+    # a transfer's probes would be those of the plain analysis of ``data``: left to it
+    probes = probe_places(run, db) if fit_db is None else None
     out = _out_dir(out)  # made only once the analysis has succeeded
     # metrics.json, written last, marks a whole analysis: a folder that a failure (a full
     # disk) leaves with this analysis' figures has no metrics of an earlier one beside them

@@ -65,7 +65,8 @@ def analyze(
     else:
         print(f"{m['model']} on {m['data']}:")
     print("\n".join(summary_lines(m["analysis"])))
-    print("\n".join(probe_lines(m["probes"])))
+    if m["fit_analysis"] is None:
+        print("\n".join(probe_lines(m["probes"])))
     err_console.print("wrote " + ", ".join(str(p) for p in result.files), soft_wrap=True)
 
 
