@@ -196,10 +196,11 @@ def analyze_files(
     fit_data: str | Path | None = None,
     seed: int = 0,
     svg: bool = False,
+    probes: bool = True,
 ) -> AnalyzeResult:
     """Analyse ``run``'s representation (``"raw"`` or a run folder) of ``data``'s test split and
     write the figures (PNG, and SVG with ``svg``) and ``metrics.json`` into ``out`` (see the
-    module docstring)."""
+    module docstring); with ``probes``, the place probes (``probe_places``) too."""
     from sensorimotor.analysis.plots import plot_clusters, plot_pca, plot_transfer
     from sensorimotor.sim.plots import save_figure
 
@@ -207,7 +208,7 @@ def analyze_files(
     source = _analyze(run, fit_db, seed) if fit_db is not None else None
     result = _analyze(run, db, seed, source)
     # a transfer's probes would be those of the plain analysis of ``data``: left to it
-    probes = probe_places(run, db) if fit_db is None else None
+    probes = probe_places(run, db) if probes and fit_db is None else None
     out = _out_dir(out)  # made only once the analysis has succeeded
     # metrics.json, written last, marks a whole analysis: a folder that a failure (a full
     # disk) leaves with this analysis' figures has no metrics of an earlier one beside them

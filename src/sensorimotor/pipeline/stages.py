@@ -161,6 +161,7 @@ def analysis_job(run: str, data: str, out: str, fit_data: str | None, key: str) 
     clusters fitted on ``fit_data``'s, where given); its metrics."""
     from sensorimotor.analysis import analyze_files
 
-    res = analyze_files(run, data, out, fit_data=fit_data)
+    # the paper's analyses leave the place probes to --experiment memory (a minute of the quick run)
+    res = analyze_files(run, data, out, fit_data=fit_data, probes=False)
     write_json_atomic(Path(out) / "stage.json", {"key": key})
     return res.metrics
