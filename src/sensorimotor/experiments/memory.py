@@ -37,6 +37,7 @@ FRESH_SEED = 1  # the probes' databases: the reproduction's are seed 0
 ROOMED = ("rooms1", "rooms2")  # the worlds that name rooms
 ABLATED_ON = "rooms1"
 POSE = "pose"  # the ceiling: (x, y, cos, sin) of the true pose through the same probes
+AHEAD = dict(KINDS[REC_SMA].training)["ahead"]  # the open-loop curve: every variant to Rec-SMA's K
 WHERE = "issue 32 (an action-conditioned recurrent encoder), before any Rec-SMA was trained"
 
 
@@ -118,7 +119,7 @@ def probe_job(run: str, data: str, out: str, key: str) -> dict:
             s, m = split_tensors(db, "test")
             result["error"] = model_error(loaded.model, s, m)
             if loaded.model.config.motor_memory:
-                result["ahead"] = ahead_errors(loaded.model, s, m, 32).tolist()
+                result["ahead"] = ahead_errors(loaded.model, s, m, AHEAD).tolist()
     write_json_atomic(Path(out), {"key": key, "result": result})
     return result
 
@@ -198,7 +199,7 @@ def _cell(values: list) -> dict:
     if not v:
         return {"mean": None, "sd": None, "n": 0, "interval": None}
     mean, sd = mean_sd(v)
-    ci = interval(v) if len(v) > 1 else None
+    ci = interval(v)  # None below two seeds
     return {"mean": mean, "sd": sd, "n": len(v), "interval": None if ci is None else list(ci)}
 
 
@@ -381,7 +382,8 @@ def section(rep, found: dict) -> list[Block]:
         h(2, "A memory that reads the motor commands"),
         p(
             "Rec-SMA's memory reads the last motor command beside the reading, and its "
-            "representation is trained to predict the readings up to 32 steps ahead open loop. "
+            f"representation is trained to predict the readings up to {AHEAD} steps ahead open "
+            "loop. "
             "Each representation is probed on a fresh database of each world (seed "
             f"{FRESH_SEED}): probes fitted on its training split, scored on its test split after "
             "200 steps. Mean over seeds [Student-t 95 %]. The true pose is the ceiling."
