@@ -34,18 +34,37 @@ def test_layout_families_fit_the_papers_sentences(world, horizontal, vertical):
             assert d.min() < 1e-9
 
 
-def test_no_layout_of_a_family_seals_a_room():
-    from sensorimotor.sim.floorplan import free_regions
+SEALED = [[15.0, 25.0, 15.0, 50.0], [0.0, 25.0, 15.0, 25.0]]  # the old Rooms1 layout 7: a 15 x 25 box
+
+
+def test_a_sealed_layout_is_refused_by_the_family(monkeypatch):
+    from sensorimotor.sim.floorplan import free_regions, reachable
     from sensorimotor.sim.world import world_from_dict
 
-    sealed = world_from_dict({"name": "x", "size": 50.0, "walls": [[15, 25, 15, 50], [0, 25, 15, 25]]})
-    assert free_regions(sealed) == 2  # the 15 x 25 box the old Rooms1 family accepted
-    assert free_regions(load_world("rooms1")) == 1
-    for world in ("rooms1", "rooms2"):
-        family = walls.wall_family(world)
-        assert len(family) == walls.FAMILY_SIZE == 20
-        assert all(free_regions(w) == 1 for w in family)
-        assert sealed.walls.tolist() not in [w.walls.tolist() for w in family]
+    sealed = world_from_dict({"name": "x", "size": 50.0, "walls": SEALED})
+    assert free_regions(sealed) == 2
+    assert not reachable(sealed)
+    assert reachable(load_world("rooms1"))
+    # a family whose draw offers the sealed layout first, then an open one: only the open one kept
+    opened = [[15.0, 25.0, 15.0, 50.0], [0.0, 25.0, 8.0, 25.0]]  # a 7-wide opening
+    offers = iter([SEALED, SEALED, opened])
+    monkeypatch.setitem(walls.DRAW, "rooms1", lambda rng: next(offers))
+    family = walls.wall_family("rooms1", 2)
+    assert [w.walls.tolist() for w in family][1] == opened
+
+
+@pytest.mark.parametrize("world", ["rooms1", "rooms2"])
+def test_every_layout_of_a_family_is_reachable_and_the_seed_fixes_the_family(world):
+    from sensorimotor.sim.floorplan import reachable
+
+    family = walls.wall_family(world)
+    assert len(family) == walls.FAMILY_SIZE == 20
+    assert all(reachable(w) for w in family)
+    assert SEALED not in [w.walls.tolist() for w in family]
+    again = walls.wall_family(world, seed=walls.FAMILY_SEED)
+    assert [w.walls.tolist() for w in again] == [w.walls.tolist() for w in family]
+    other = walls.wall_family(world, seed=walls.FAMILY_SEED + 1)
+    assert [w.walls.tolist() for w in other][1:] != [w.walls.tolist() for w in family][1:]
 
 
 def _context(tmp_path, run, jobs_seen: list):
@@ -80,7 +99,7 @@ def test_the_walls_experiment_tests_the_square_runs_on_each_family_and_keeps_its
         assert len(cell["per_layout"]) == layouts
         assert cell["min"] <= cell["builtin"] <= cell["max"]
         assert cell["paper"] == pytest.approx({"rooms1": 0.04299, "rooms2": 0.07290}[world])
-        assert found["worlds"][world]["reachable"] == [True] * layouts
+        assert [lay["reachable"] for lay in found["worlds"][world]["layouts"]] == [True] * layouts
         low, high = cell["band_5_95"]
         assert cell["min"] <= low <= high <= cell["max"]
         assert 0.0 <= found["worlds"][world]["share_within"] <= 1.0
@@ -90,6 +109,8 @@ def test_the_walls_experiment_tests_the_square_runs_on_each_family_and_keeps_its
     md = to_markdown(ex.sections(None, {"walls": found}), tmp_path)
     assert "wall layout" in md
     assert "| s |" in md
+    assert f"Reachable layouts (every free place reachable from every other): {layouts} of" in md
+    assert "5-95 % band:" in md
 
 
 def test_the_walls_experiment_needs_square(tmp_path):

@@ -32,7 +32,7 @@ from sensorimotor.learn.evaluate import evaluate_run, load_run
 from sensorimotor.learn.models import KINDS
 from sensorimotor.report.blocks import Block, h, p, table
 from sensorimotor.sim.database import generate
-from sensorimotor.sim.floorplan import free_regions
+from sensorimotor.sim.floorplan import reachable
 from sensorimotor.sim.world import World, load_world, point_segment_distance, world_from_dict
 from sensorimotor.version import __version__
 
@@ -99,21 +99,30 @@ def _rooms2(rng: np.random.Generator) -> list[list[float]]:
             return [[round(v, 3) for v in w] for w in walls]
 
 
+DRAW: dict[str, Callable[[np.random.Generator], list[list[float]]]] = {
+    "rooms1": _rooms1,
+    "rooms2": _rooms2,
+}
+"""Each family's draw of one candidate layout; ``wall_family`` keeps only reachable ones."""
+
+
 def wall_family(world: str, count: int = FAMILY_SIZE, seed: int = FAMILY_SEED) -> list[World]:
     """``count`` distinct layouts that fit the paper's sentence for ``world`` (rooms1, rooms2),
-    every free place reachable from every other (``floorplan.free_regions``: a wall that seals
-    a room with another is refused), named ``{world}-layoutK``; the first is the built-in
-    world (DESIGN.md's guess), renamed."""
-    draw = {"rooms1": _rooms1, "rooms2": _rooms2}.get(world)
+    every free place reachable from every other (``floorplan.reachable``, the floor-plan
+    generator's test: a wall that seals a room with another is refused, in every family),
+    named ``{world}-layoutK``; the first is the built-in world (DESIGN.md's guess), renamed."""
+    draw = DRAW.get(world)
     if draw is None:
-        raise InputError(f"no layout family for {world!r}: use rooms1 or rooms2")
+        raise InputError(f"no layout family for {world!r}: use {' or '.join(DRAW)}")
     rng = np.random.default_rng(seed)
     builtin = load_world(world)
+    if not reachable(builtin):
+        raise InputError(f"the built-in {world} seals a room: no family drawn around it")
     out = [builtin.walls.tolist()]
     while len(out) < count:
         walls = draw(rng)
         candidate = {"name": "candidate", "size": SIZE, "walls": walls}
-        if walls not in out and free_regions(world_from_dict(candidate)) == 1:
+        if walls not in out and reachable(world_from_dict(candidate)):
             out.append(walls)
     return [
         world_from_dict({"name": f"{world}-layout{k}", "size": SIZE, "walls": walls})
@@ -175,8 +184,7 @@ def wall_sensitivity(
         ]
         result["worlds"][name] = {
             "sentence": SENTENCES[name],
-            "layouts": [w.walls.tolist() for w in family],
-            "reachable": [free_regions(w) == 1 for w in family],
+            "layouts": [{"walls": w.walls.tolist(), "reachable": reachable(w)} for w in family],
             "share_within": float(np.mean(fits)) if papers else None,
             "cells": cells,
         }
@@ -272,11 +280,16 @@ def _band(c: dict) -> str:
 def _fit_sentence(res: dict) -> str:
     """How many layouts are reachable and how many fit Table I within ``WITHIN``."""
     n, share = len(res["layouts"]), res.get("share_within")
-    reachable = sum(res.get("reachable", [])) if "reachable" in res else "n/a"
+    flags = [lay.get("reachable") for lay in res["layouts"] if isinstance(lay, dict)]
+    open_ = sum(map(bool, flags)) if len(flags) == n else "n/a"  # an older result: not recorded
     fit = "n/a" if share is None else f"{share:.0%}"
+    band = {k: c.get("paper_in_band") for k, c in res["cells"].items()}
+    inside = [k for k, v in band.items() if v] or ["none"]
+    outside = [k for k, v in band.items() if v is False] or ["none"]
     return (
-        f"Reachable layouts (every free place reachable from every other): {reachable} of {n}; "
-        f"layouts with every model within {WITHIN:.0%} of the paper: {fit}."
+        f"Reachable layouts (every free place reachable from every other): {open_} of {n}; "
+        f"layouts with every model within {WITHIN:.0%} of the paper: {fit}. Paper values "
+        f"inside the family's 5-95 % band: {', '.join(inside)}; outside: {', '.join(outside)}."
     )
 
 

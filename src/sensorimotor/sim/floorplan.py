@@ -5,8 +5,10 @@ one doorway of width ``door`` in that wall, then cuts the largest room that can 
 and so on until there are ``rooms`` rooms. A cut runs across the longer side of its room, at a
 random position that leaves both halves at least ``min_side`` wide and does not end inside an
 earlier doorway (which would narrow it). Every room is reachable from every other through the
-doorways (each cut joins its two halves, so the rooms form a tree); ``check_reachable`` proves
-it on the drawn walls by a flood fill, and ``random_plan`` refuses a plan that fails it.
+doorways (each cut joins its two halves, so the rooms form a tree); ``reachable`` proves it on
+the drawn walls by a flood fill (one free region), and ``random_plan`` refuses a plan that fails
+it (``check_reachable`` names the rooms cut off). ``experiments.walls`` refuses a wall layout by
+the same test.
 
 ``world_toml`` writes any world as a TOML world file (walls, rooms), which ``load_world`` reads.
 """
@@ -114,9 +116,9 @@ def random_plan(
         "generated plan",
     )
     resolution = max(min(FLOOD_RESOLUTION, door / 4), max(width, height) / 2000)
-    unreached = check_reachable(world, resolution)
-    if unreached:
-        raise InputError(f"generated plan: room {unreached[0]!r} cannot be reached")  # a bug
+    if not reachable(world, resolution):  # a bug: the cuts form a tree
+        unreached = check_reachable(world, resolution) or ["?"]
+        raise InputError(f"generated plan: room {unreached[0]!r} cannot be reached")
     return world
 
 
@@ -201,6 +203,12 @@ def free_regions(world: World, resolution: float = FLOOD_RESOLUTION) -> int:
     labels, _, _, _ = _flood(world, resolution)
     sizes = np.bincount(labels.ravel())[1:] * resolution**2
     return int((sizes >= MIN_REGION).sum())
+
+
+def reachable(world: World, resolution: float = FLOOD_RESOLUTION) -> bool:
+    """Every free place reachable from every other (one free region, ``free_regions``): the
+    one test of a generated world, floor plan or wall layout, that no wall seals a room."""
+    return free_regions(world, resolution) == 1
 
 
 def world_toml(world: World, comment: str = "") -> str:
