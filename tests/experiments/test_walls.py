@@ -34,7 +34,8 @@ def test_layout_families_fit_the_papers_sentences(world, horizontal, vertical):
             assert d.min() < 1e-9
 
 
-SEALED = [[15.0, 25.0, 15.0, 50.0], [0.0, 25.0, 15.0, 25.0]]  # the old Rooms1 layout 7: a 15 x 25 box
+# the old Rooms1 family's layout 7: a sealed 15 x 25 box
+SEALED = [[15.0, 25.0, 15.0, 50.0], [0.0, 25.0, 15.0, 25.0]]
 
 
 def test_a_sealed_layout_is_refused_by_the_family(monkeypatch):
