@@ -25,7 +25,12 @@ def test_a_representation_that_holds_the_place_scores_the_ceiling_and_noise_scor
     onehot = lambda rooms: np.eye(4)[rooms + 1]  # noqa: E731 (outside every room: a 4th column)
     rng = np.random.default_rng(2)
     knows = place_probes(
-        np.column_stack([pf[:, :2], onehot(rf)]), pf, np.column_stack([p[:, :2], onehot(r)]), p, rf, r
+        np.column_stack([pf[:, :2], onehot(rf)]),
+        pf,
+        np.column_stack([p[:, :2], onehot(r)]),
+        p,
+        rf,
+        r,
     )
     assert knows["room"]["balanced_accuracy"] == pytest.approx(1.0)
     assert knows["room"]["chance"] == pytest.approx(1 / 3)
@@ -61,3 +66,33 @@ def test_analyze_prints_the_place_probes(rooms1_db_path, tmp_path):
     text = " ".join(proc.stdout.split())
     assert "place probes (fitted on" in text
     assert "balanced accuracy (chance 0.333)" in text
+
+
+def test_the_event_probe_fitted_on_one_split_reads_a_linear_code_on_another():
+    from sensorimotor.analysis.probes import probe_auc
+
+    rng = np.random.default_rng(1)
+
+    def split(n: int, coded: bool):
+        event = rng.random(n) < 0.1  # "a corner in view", rare as in the worlds
+        signal = event + 0.3 * rng.standard_normal(n) if coded else rng.standard_normal(n)
+        return np.c_[signal, rng.standard_normal((n, 7))], event
+
+    (z_fit, e_fit), (z, e) = split(3000, True), split(1000, True)
+    assert probe_auc(z, e, fit=(z_fit, e_fit)) > 0.95  # linearly decodable: near 1
+    (z_fit, e_fit), (z, e) = split(3000, False), split(1000, False)
+    assert abs(probe_auc(z, e, fit=(z_fit, e_fit)) - 0.5) < 0.08  # not decodable: near chance
+    assert probe_auc(z, np.zeros(1000, dtype=bool), fit=(z_fit, e_fit)) is None  # one class
+    with pytest.raises(ValueError, match="do not match"):
+        probe_auc(z, e, fit=(z_fit[:, :3], e_fit))
+
+
+def test_an_analysis_fits_its_event_probes_on_the_training_split(square_db_path, tmp_path):
+    plain = analyze_files("raw", square_db_path, tmp_path / "a", probes=False)
+    split = analyze_files("raw", square_db_path, tmp_path / "b", probes=False, event_probes=True)
+    a, b = plain.metrics["analysis"]["events"], split.metrics["analysis"]["events"]
+    assert {e["probe_fit"] for e in a.values()} == {"half of the steps"}
+    assert {e["probe_fit"] for e in b.values()} == {"train split"}
+    assert b["corner"]["probe_auc"] is not None
+    assert 0.5 < b["corner"]["probe_auc"] <= 1.0  # the raw readings tell a corner, linearly
+    assert a["corner"]["f1"] == b["corner"]["f1"]  # the clusters are the same

@@ -37,6 +37,13 @@ def test_one_condition_runs_its_stages_and_a_second_run_trains_nothing(tmp_path)
     assert [v["claim"] for v in c["verdicts"]] == ["ordering", "corner cluster", "memory"]
     assert {v["provenance"] for v in c["verdicts"]} == {BEFORE}
     json.dumps(first, allow_nan=False)  # strict JSON
+    # the corner probe beside the cluster F1, in every representation, fitted on the train split
+    assert all("corner_auc" in c["claims"][k] for k in ("raw", "s", "sm", "rec-s", "rec-sm"))
+    metrics = json.loads(
+        (tmp_path / "scaling" / "analysis" / "raw__tiny__on__tiny" / "metrics.json").read_text()
+    )
+    assert metrics["analysis"]["events"]["corner"]["probe_fit"] == "train split"
+    assert c["claims"]["raw"]["corner_auc"] == metrics["analysis"]["events"]["corner"]["probe_auc"]
     again = sc.run_conditions(ctx, size, [cond])
     assert again["jobs"] == {"data": 0, "train": 0, "evaluate": 0, "analyze": 0}
     assert again["conditions"] == first["conditions"]

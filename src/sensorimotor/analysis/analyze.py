@@ -23,6 +23,7 @@ from sensorimotor.analysis.representation import (
     RepresentationAnalysis,
     analyze_representation,
     scaled_readings,
+    world_events,
 )
 from sensorimotor.errors import InputError
 from sensorimotor.files import atomic_path, check_writable, write_json_atomic
@@ -117,7 +118,23 @@ def truth_readings(db: Database, split: str = SPLIT) -> np.ndarray:
     return read_sensors(db.world, part.poses, db.layout)
 
 
-def _analyze(run, db: Database, seed: int, fitted: RepresentationAnalysis | None = None):
+def event_probe_fit(run, db: Database) -> tuple[np.ndarray, dict[str, np.ndarray]] | None:
+    """What each event's linear probe (``probes.probe_auc``) is fitted on: the representation
+    of ``db``'s training split (its first ``PROBE_FIT_MAX`` steps) and that split's events
+    (``world_events``); None where the split is too short to analyse."""
+    part = db.take("train")
+    if len(part) < N_CLUSTERS:
+        return None
+    z_fit = representation_of(run, db, "train", PROBE_FIT_MAX)
+    n = len(z_fit)
+    world = db.world if db.has_walls else None
+    events = world_events(world, truth_readings(db, "train")[:n], part.poses[:n], db.layout)
+    return z_fit, events
+
+
+def _analyze(
+    run, db: Database, seed: int, fitted: RepresentationAnalysis | None = None, fit_probes=False
+):
     z = representation_of(run, db)
     part = db.take(SPLIT)
     kmeans, pca = (fitted.kmeans, fitted.pca) if fitted else (None, None)
@@ -127,9 +144,11 @@ def _analyze(run, db: Database, seed: int, fitted: RepresentationAnalysis | None
             f"{fitted.kmeans.n_features_in_}-d ones"
         )
     world = db.world if db.has_walls else None  # None: the stages that need walls say n/a
+    probe_fit = event_probe_fit(run, db) if fit_probes else None
     return analyze_representation(
-        z, truth_readings(db), part.poses, world, seed, kmeans, pca, db.layout, name=_name(db)
-    )
+        z, truth_readings(db), part.poses, world, seed, kmeans, pca, db.layout, name=_name(db),
+        probe_fit=probe_fit,
+    )  # fmt: skip
 
 
 def _name(db: Database) -> str:
@@ -197,16 +216,19 @@ def analyze_files(
     seed: int = 0,
     svg: bool = False,
     probes: bool = True,
+    event_probes: bool = False,
 ) -> AnalyzeResult:
     """Analyse ``run``'s representation (``"raw"`` or a run folder) of ``data``'s test split and
     write the figures (PNG, and SVG with ``svg``) and ``metrics.json`` into ``out`` (see the
-    module docstring); with ``probes``, the place probes (``probe_places``) too."""
+    module docstring); with ``probes``, the place probes (``probe_places``) too; with
+    ``event_probes``, each event's linear probe is fitted on ``data``'s training split
+    (``event_probe_fit``) rather than on a random half of the test split (not in a transfer)."""
     from sensorimotor.analysis.plots import plot_clusters, plot_pca, plot_transfer
     from sensorimotor.sim.plots import save_figure
 
     run, db, fit_db, out = load_inputs(run, data, fit_data, out, OUTPUTS)
     source = _analyze(run, fit_db, seed) if fit_db is not None else None
-    result = _analyze(run, db, seed, source)
+    result = _analyze(run, db, seed, source, event_probes and fit_db is None)
     # a transfer's probes would be those of the plain analysis of ``data``: left to it
     probes = probe_places(run, db) if probes and fit_db is None else None
     out = _out_dir(out)  # made only once the analysis has succeeded

@@ -1,7 +1,8 @@
 """Linear probes and KNN-MSE: what a representation knows of the distance behind and the pose.
 
 Probes are ridge regressions on standardised features, fitted on a random half of the steps
-(fixed seed) and scored (R^2) on the other half.
+(fixed seed) and scored (R^2) on the other half; the event probe (``probe_auc``) is fitted on the
+training split where one is given, and scored on the test split.
 """
 
 from __future__ import annotations
@@ -49,11 +50,20 @@ def probe_r2(z: np.ndarray, target: np.ndarray, seed: int = 0, alpha: float = RI
     return float(r2_score(target[score], probe.predict(z[score])))
 
 
-def probe_auc(z: np.ndarray, event: np.ndarray, seed: int = 0) -> float | None:
-    """ROC AUC on a held-out half of a linear (logistic, class-balanced) probe from ``z`` to a
-    boolean ``event`` (a corner in view): unlike the best single cluster's F1, it does not
-    depend on k-means giving the event a cluster of its own. 0.5 is chance, 1 a linear
-    separation. The halves are ``probe_r2``'s; None (JSON null) where either half lacks a class.
+def probe_auc(
+    z: np.ndarray,
+    event: np.ndarray,
+    seed: int = 0,
+    fit: tuple[np.ndarray, np.ndarray] | None = None,
+) -> float | None:
+    """ROC AUC of a linear (logistic, class-balanced) probe from ``z`` to a boolean ``event``
+    (a corner in view): unlike the best single cluster's F1, it does not depend on k-means
+    giving the event a cluster of its own. 0.5 is chance, 1 a linear separation.
+
+    With ``fit`` (z_fit, event_fit: the training split's), the probe is fitted there and scored
+    on all of ``z``; without, fitted on a random half of ``z`` and scored on the other
+    (``probe_r2``'s halves). Features are standardised on the fitting steps. None (JSON null)
+    where the fitting or the scored steps lack a class.
     """
     from sklearn.linear_model import LogisticRegression
     from sklearn.metrics import roc_auc_score
@@ -62,14 +72,21 @@ def probe_auc(z: np.ndarray, event: np.ndarray, seed: int = 0) -> float | None:
     event = np.asarray(event, dtype=bool)
     if len(event) != len(z):
         raise ValueError(f"event has {len(event)} rows, representation {len(z)}")
-    if len(z) < 4:
+    if fit is None:
+        if len(z) < 4:
+            return None
+        a, b = _halves(len(z), seed)
+        return probe_auc(z[b], event[b], fit=(z[a], event[a]))
+    z_fit, event_fit = check_z(fit[0]), np.asarray(fit[1], dtype=bool)
+    if len(event_fit) != len(z_fit) or z_fit.shape[1] != z.shape[1]:
+        raise ValueError(f"fitting steps {z_fit.shape} and events {event_fit.shape} do not match")
+    if len(np.unique(event_fit)) < 2 or len(np.unique(event)) < 2:
         return None
-    fit, score = _halves(len(z), seed)
-    if len(np.unique(event[fit])) < 2 or len(np.unique(event[score])) < 2:
-        return None
-    probe = make_pipeline(StandardScaler(), LogisticRegression(class_weight="balanced"))
-    probe.fit(z[fit], event[fit])
-    return float(roc_auc_score(event[score], probe.decision_function(z[score])))
+    probe = make_pipeline(
+        StandardScaler(), LogisticRegression(class_weight="balanced", max_iter=1000)
+    )
+    probe.fit(z_fit, event_fit)
+    return float(roc_auc_score(event, probe.decision_function(z)))
 
 
 def _subsample(n: int, m: int, seed: int) -> np.ndarray:
@@ -198,7 +215,7 @@ def memory_scores(
 
 
 BURN_IN = 200  # steps a recurrent memory is given at the start of a split before it is scored
-PROBE_FIT_MAX = 100_000  # training-split steps a place probe is fitted on (its first ones)
+PROBE_FIT_MAX = 100_000  # training-split steps a place or event probe is fitted on (its first ones)
 
 
 def place_probes(

@@ -96,6 +96,7 @@ def analyze_representation(
     layout: SensorLayout = DEFAULT_LAYOUT,
     k: int = N_CLUSTERS,
     name: str | None = None,
+    probe_fit: tuple[np.ndarray, dict[str, np.ndarray]] | None = None,
 ) -> RepresentationAnalysis:
     """Cluster and score a representation ``z`` (N, D) of steps with raw ``sensors`` (N, R, in
     units) and true ``poses`` (N, 3) in ``world``, recorded with ``layout``'s lasers (what
@@ -107,7 +108,9 @@ def analyze_representation(
     - ``n_steps``, ``dim``, ``seed``, ``k``, ``transfer``, ``world``, ``pca_explained_variance``;
     - ``events``: per event (corner, wall_end where the world has free ends, nothing) the best
       cluster's ``precision``, ``recall``, ``f1``, ``cluster``, the event's ``rate``, ``count``,
-      and ``probe_auc`` (a linear probe's, ``probes.probe_auc``);
+      ``probe_auc`` (a linear probe's, ``probes.probe_auc``) and ``probe_fit``: where the probe
+      was fitted, ``"train split"`` with ``probe_fit`` (the training split's representation
+      and events, ``world_events``), else ``"half of the steps"`` (a random half of ``z``);
     - ``memory``: ``memory_scores``; ``position``: ``position_scores``;
     - ``clusters``: per cluster ``id``, ``size``, ``share``, ``precision`` and ``lift``
       (precision / rate) per event, and ``strongest_event``: the event of highest lift among those
@@ -167,7 +170,7 @@ def analyze_representation(
         "transfer": transfer,
         "pca_explained_variance": [float(v) for v in pca.explained_variance_ratio_],
         "events": {
-            name: {**event_scores(labels, e, k), "probe_auc": probe_auc(z, e, seed)}
+            name: {**event_scores(labels, e, k), **_event_probe(z, e, name, seed, probe_fit)}
             for name, e in events.items()
         },
         "memory": memory_scores(z, labels, events["nothing"], behind, seed, k),
@@ -176,6 +179,16 @@ def analyze_representation(
     }
     truth = {**events} if behind is None else {**events, "distance_behind": behind}
     return RepresentationAnalysis(metrics, labels, pc, kmeans, pca, truth)
+
+
+def _event_probe(z, event, name: str, seed: int, fit) -> dict:
+    """``probe_auc`` of one event, fitted on the training split's steps where ``fit`` has
+    them (scored on all of ``z``), else on a random half of ``z``."""
+    if fit is None or name not in fit[1]:
+        return {"probe_auc": probe_auc(z, event, seed), "probe_fit": "half of the steps"}
+    z_fit, events_fit = fit
+    auc = probe_auc(z, event, fit=(z_fit, events_fit[name]))
+    return {"probe_auc": auc, "probe_fit": "train split"}
 
 
 def _region_size(world: World | None, poses: np.ndarray) -> tuple[float, float]:

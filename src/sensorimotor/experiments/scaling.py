@@ -15,8 +15,9 @@ Stages, each cached under ``OUT/scaling/`` by a hash of its inputs (a rerun does
 missing or changed): ``data/`` (a database per condition, and per plan), ``runs/`` (every
 model's seeds of one condition in one ``train.train_runs`` call), ``eval/`` (``evaluate_run``
 on the condition's test databases), ``analysis/`` (``analyze_files`` of each run and of the
-raw readings on each test database: the corner cluster and the memory numbers of
-``analysis.claims``). The 10 training plans make one database (``merge_plans``): the train
+raw readings on each test database: the corner cluster, the corner probe (a class-balanced
+logistic regression fitted on the database's training split, its AUC on the test split) and the
+memory numbers of ``analysis.claims``). The 10 training plans make one database (``merge_plans``): the train
 parts of the 10 plan databases one after the other, then their validation parts, then their
 test parts, so that its splits are exactly the union of the plans' splits; its world is
 unknown (rows of 10 worlds; training reads readings and commands alone).
@@ -51,6 +52,7 @@ PLAN = {"rooms": 6, "size": 50.0, "door": 5.0, "min_side": 10.0}
 are at their narrowest (5 units: the behaviour turns at 1 unit from a wall)."""
 TEST_PLAN_SEED = 1000  # test plans are seeds 1000..1009, training plans 0..9
 NOISE_SD, DROPOUT = 0.3, 0.01  # units of reading noise (3 % of the range); rays dropped
+EVENT_PROBES = "train split"  # the corner probe is fitted on each test database's training split
 
 
 @dataclass(frozen=True)
@@ -361,10 +363,12 @@ def run_conditions(ctx, size: Size, conds: Sequence[Condition], device: str = "c
                     "data": hashes[Path(data)],
                     "version": __version__,
                     "metrics": METRICS_VERSION,
+                    "event_probes": EVENT_PROBES,
                 }
             )
             if not ((out / "metrics.json").exists() and read_key(out / "stage.json") == key):
-                jobs.append(Job(out.name, analysis_job, (run, data, str(out), None, key)))
+                args = (run, data, str(out), None, key, True)  # event probes: train -> test
+                jobs.append(Job(out.name, analysis_job, args))
     ctx.run(jobs)
     ran["analyze"] = len(jobs)
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from sensorimotor.analysis.analyze import short_name, with_raw
+from sensorimotor.analysis.probes import PROBE_FIT_MAX
 from sensorimotor.analysis.tables import paper_ordering_holds
 from sensorimotor.learn.models import REC_SM, SM, S, paper_kinds
 from sensorimotor.learn.runs import count
@@ -137,7 +138,7 @@ def condition_table(c: dict) -> Block:
     seen = c.get("errors_on_training_plans")
     header = ["Model", "test error", "per ray", "/ previous reading"]
     header += ["on its training plans"] if seen else []
-    header += ["corner F1", "corner AUC (probe)", "'nothing' clusters", "distance-behind R²"]
+    header += ["corner F1", "corner AUC (linear probe)", "'nothing' clusters", "distance-behind R²"]
     rows = []
     for kind in with_raw():
         claims = c["claims"][kind]
@@ -178,8 +179,14 @@ def section(rep, found: dict) -> list[Block]:
             "Errors are Table I's (squared error summed over the rays, readings scaled to "
             "[0, 1]) on the test splits, averaged over the test databases; 'per ray' divides by "
             "the rays, '/ previous reading' by the error of predicting the last reading again. "
-            "Corner F1 and the memory numbers are `analysis.claims`', on the test splits, "
-            "averaged over seeds and test databases. `docs/DESIGN.md` gives the choices."
+            "Corner F1 (the best of k = 20 k-means clusters) and the memory numbers are "
+            "`analysis.claims`', on the test splits, averaged over seeds and test databases. "
+            "Corner AUC: a linear probe for 'a corner in view' beside the cluster F1, which "
+            "cannot credit a representation that encodes the corner among more than 20 "
+            "clusters' worth of other things: a class-balanced logistic regression on the "
+            "standardised representation, fitted on each test database's training split (its "
+            f"first {PROBE_FIT_MAX:,} steps), its ROC AUC on the test split (0.5: chance, 1: linearly "
+            "separable); n/a where a split has no corner. `docs/DESIGN.md` gives the choices."
         ),
     ]
     for name, c in conds.items():

@@ -156,12 +156,15 @@ def eval_job(run_dir: str, data: list[str], out: str, key: str) -> dict:
     return res
 
 
-def analysis_job(run: str, data: str, out: str, fit_data: str | None, key: str) -> dict:
+def analysis_job(
+    run: str, data: str, out: str, fit_data: str | None, key: str, event_probes: bool = False
+) -> dict:
     """Analyse ``run`` (a run folder or ``"raw"``) on ``data``'s test split into ``out`` (with
-    clusters fitted on ``fit_data``'s, where given); its metrics."""
+    clusters fitted on ``fit_data``'s, where given; with ``event_probes``, the event probes
+    fitted on ``data``'s training split); its metrics."""
     from sensorimotor.analysis import analyze_files
 
     # the paper's analyses leave the place probes to --experiment memory (a minute of the quick run)
-    res = analyze_files(run, data, out, fit_data=fit_data, probes=False)
+    res = analyze_files(run, data, out, fit_data=fit_data, probes=False, event_probes=event_probes)
     write_json_atomic(Path(out) / "stage.json", {"key": key})
     return res.metrics
