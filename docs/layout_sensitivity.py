@@ -31,11 +31,20 @@ def main() -> None:
         runs, layouts=args.layouts, data_seeds=range(args.data_seeds), steps=args.steps,
         log=lambda line: print(line, file=sys.stderr, flush=True),
     )  # fmt: skip
-    result["command"] = " ".join(sys.argv)
-    result["runs"] = [str(r) for r in runs]
+    result["command"] = "python " + " ".join([Path(sys.argv[0]).as_posix(), *sys.argv[1:]])
+    result["runs"] = [_shown(r) for r in runs]
+    text = sensitivity_markdown(result) + f"\nMade by `{result['command']}`.\n"
     write_text_atomic(args.out / "layout_sensitivity.json", json.dumps(result, indent=2))
-    write_text_atomic(args.out / "layout_sensitivity.md", sensitivity_markdown(result))
-    print(sensitivity_markdown(result))
+    write_text_atomic(args.out / "layout_sensitivity.md", text)
+    print(text)
+
+
+def _shown(path: Path) -> str:
+    """A run folder's path as the JSON records it: relative to the repository when inside it."""
+    try:
+        return path.resolve().relative_to(ROOT.parent).as_posix()
+    except ValueError:
+        return str(path)
 
 
 if __name__ == "__main__":
