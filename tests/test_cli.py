@@ -229,6 +229,10 @@ def test_generates_default_name_says_what_differs_from_the_papers_recording():
     noisy = default_name("rooms1", 0, 64, 6.283185, 8.0, 0.05, "relative", 0.01, 0.02)
     assert noisy.name == "rooms1_s0_rays64_fov6.28318_range8_noise0.05rel_dropout0.01_motornoise0.02.npz"
     assert default_name("rooms1", 0, 5, 1.2, 10.0, 0.05, "absolute", 0.0, 0.0) != default_name(*paper)
+    assert default_name(*paper, "paper").name == "rooms1_s0.npz"
+    assert default_name(*paper, "smooth").name == "rooms1_s0_smooth.npz"
+    smooth_rays = default_name("rooms1", 0, 16, 1.2, 10.0, 0.0, "absolute", 0.0, 0.0, "smooth")
+    assert smooth_rays.name == "rooms1_s0_rays16_smooth.npz"
 
 
 def test_every_commands_help_renders_every_option_help_whole():

@@ -47,8 +47,8 @@ def run_kernel(
         max_range, tuple(angles) == sim.DEFAULT_LAYOUT.angles, *start, uniforms,
         noise if noise is not None else np.zeros((0, n)), relative,
         dropped if dropped is not None else np.zeros((0, n), dtype=bool),
-        motor if motor is not None else np.zeros((0, 2)), sensors, motors, poses,
-    )  # fmt: skip
+        motor if motor is not None else np.zeros((0, 2)), sensors, motors, poses, sim.PAPER, 0.0,
+    )[:3]  # fmt: skip
 
 
 def readings(w, x, y, heading):

@@ -32,7 +32,8 @@ from sensorimotor.sim import MAX_RAYS, MAX_SEED
 
 
 def default_name(world: str, seed: int, rays: int, fov: float, range_: float, noise: float,
-                 noise_kind: str, dropout: float, motor_noise: float) -> Path:  # fmt: skip
+                 noise_kind: str, dropout: float, motor_noise: float,
+                 behaviour: str = "paper") -> Path:  # fmt: skip
     """``WORLD_sSEED.npz`` with each setting that differs from the paper's recording appended,
     so that two different recordings never take one default name."""
     parts = [f"{world}_s{seed}"]
@@ -42,6 +43,7 @@ def default_name(world: str, seed: int, rays: int, fov: float, range_: float, no
     parts += [f"noise{noise:g}" + ("rel" if noise_kind == "relative" else "")] if noise else []
     parts += [f"dropout{dropout:g}"] if dropout else []
     parts += [f"motornoise{motor_noise:g}"] if motor_noise else []
+    parts += [behaviour] if behaviour != "paper" else []
     return Path("_".join(parts) + ".npz")
 
 
@@ -104,14 +106,21 @@ def generate(
             help="Std of Gaussian noise on the executed d and r (the chosen are kept).",
         ),
     ] = 0.0,
+    behaviour: Annotated[
+        str,
+        typer.Option(
+            help="paper: the paper's random walk (a new turn each step); smooth: a turning "
+            "rate that drifts (Ornstein-Uhlenbeck). Both turn around near a wall."
+        ),
+    ] = "paper",
 ) -> None:
-    """Record a database of the paper's random wall-avoiding behaviour in WORLD.
+    """Record a database of a random wall-avoiding behaviour in WORLD (the paper's by default).
 
     The behaviour always reads the paper's 5 rays (-0.6 to 0.6 rad, noiseless); --rays, --fov
     and --range choose what is recorded, so one seed walks the same path with every layout.
     """
     from sensorimotor.files import check_writable
-    from sensorimotor.sim.core import check_noise, spread_layout
+    from sensorimotor.sim.core import check_behaviour, check_noise, spread_layout
     from sensorimotor.sim.database import check_memory, save_database
     from sensorimotor.sim.database import generate as generate_db
     from sensorimotor.sim.world import load_world
@@ -120,9 +129,10 @@ def generate(
         raise InputError(f"--steps must be at least 1, got {steps}")
     layout = spread_layout(rays, fov, range_)
     check_noise(noise, noise_kind, dropout, motor_noise)
+    check_behaviour(behaviour)
     w = load_world(world)
     out = out or default_name(w.name, seed, rays, fov, range_, noise, noise_kind, dropout,
-                              motor_noise)  # fmt: skip
+                              motor_noise, behaviour)  # fmt: skip
     check_writable(out)
     check_memory(steps, 12 * (rays + 5))
     with progress(f"generate {w.name}: steps", steps) as update:
@@ -136,10 +146,12 @@ def generate(
             noise_kind=noise_kind,
             dropout=dropout,
             motor_noise_std=motor_noise,
+            behaviour=behaviour,
         )
     save_database(db, out)
+    how = f", the {behaviour} behaviour" if behaviour != "paper" else ""
     err_console.print(
-        f"wrote {out} ({steps:,} steps of {w.name}, seed {seed}, {layout.describe()})"
+        f"wrote {out} ({steps:,} steps of {w.name}, seed {seed}, {layout.describe()}{how})"
     )
 
 

@@ -67,6 +67,11 @@ EXPERIMENTS: dict[str, Experiment] = {
             "sensorimotor.experiments.memory",
             "a memory that reads the motor commands: does it know the room and the position?",
         ),
+        Experiment(
+            "behaviour",
+            "sensorimotor.experiments.behaviour",
+            "Table I's ordering, the corner cell and the memory under a smooth random motion",
+        ),
     )
 }
 """Every experiment by name, in the order they run."""

@@ -38,7 +38,7 @@ from sensorimotor.experiments.scaling_report import plot_errors, section, verdic
 from sensorimotor.files import file_hash, read_json, read_json_if_any, write_json_atomic
 from sensorimotor.jobs.cache import read_key, stage_key
 from sensorimotor.jobs.workers import Job
-from sensorimotor.learn.models import paper_kinds
+from sensorimotor.learn.models import KINDS, paper_kinds
 from sensorimotor.learn.runs import run_name
 from sensorimotor.pipeline.stages import analysis_job, eval_job, train_and_tell, train_config
 from sensorimotor.stats import describe, mean_sd, present
@@ -64,7 +64,9 @@ class Condition:
     rays: int = 5
     noise: float = 0.0
     dropout: float = 0.0
-    plans: int = 0  # 0: the built-in WORLD; else train on this many plans, test on as many others
+    plans: int = 0  # 0: the built-in ``world``; else train on these many plans, test on others
+    world: str = WORLD  # the built-in world of a condition without plans
+    behaviour: str = "paper"  # sim.core.BEHAVIOURS: what walks the robot (experiments.behaviour)
 
     def layout(self) -> dict:
         return {"rays": self.rays, "fov": FOV, "range": RANGE}
@@ -82,7 +84,8 @@ class Size:
     @staticmethod
     def of(rep) -> Size:
         sc = rep.scale
-        return Size(sc.steps, rep.seeds, dict(sc.max_epochs), sc.patience)
+        caps = {kind: sc.epochs(kind) for kind in KINDS}  # the scale's epoch_cap too (smoke's 2)
+        return Size(sc.steps, rep.seeds, caps, sc.patience)
 
     @property
     def plan_steps(self) -> int:
@@ -127,7 +130,13 @@ def _data_job(spec: dict, path: str, key: str) -> str:
     world = load_world(world) if isinstance(world, str) else plan_world(**world)
     layout = spread_layout(spec["rays"], spec["fov"], spec["range"])
     db = generate(
-        world, spec["steps"], spec["seed"], layout, spec["noise"], dropout=spec["dropout"]
+        world,
+        spec["steps"],
+        spec["seed"],
+        layout,
+        spec["noise"],
+        dropout=spec["dropout"],
+        behaviour=spec.get("behaviour", "paper"),
     )
     save_database(db, path)
     write_json_atomic(Path(path).with_suffix(".json"), {"key": key})
@@ -204,6 +213,8 @@ class Plan:
 
 
 def _spec(cond: Condition, steps: int, world, seed: int) -> dict:
+    """A database's specification, its cache key (the behaviour named only when not the
+    paper's, so that the paper's databases keep their keys)."""
     return {
         "world": world,
         "steps": steps,
@@ -211,6 +222,7 @@ def _spec(cond: Condition, steps: int, world, seed: int) -> dict:
         **cond.layout(),
         "noise": cond.noise,
         "dropout": cond.dropout,
+        **({"behaviour": cond.behaviour} if cond.behaviour != "paper" else {}),
         "version": __version__,
     }
 
@@ -228,7 +240,7 @@ def _data_stage(ctx, size: Size, conds: Sequence[Condition]) -> tuple[list[Plan]
     for cond in conds:
         if not cond.plans:
             path = root / f"{cond.name}.npz"
-            need(path, _spec(cond, size.steps, WORLD, 0))
+            need(path, _spec(cond, size.steps, cond.world, 0))
             plans.append(Plan(cond, path, [path]))
             continue
         parts = {"train": [], "test": []}

@@ -155,6 +155,40 @@ def wrap_angle(a):
     return a
 
 
+BEHAVIOURS = ("paper", "smooth")
+"""``generate --behaviour``: a name's index is the id ``_rollout`` takes (``PAPER``, ``SMOOTH``)."""
+PAPER, SMOOTH = 0, 1
+UNIFORMS = (2, 4)
+"""Uniforms each behaviour draws a step, by id (the paper's two keep their bytes)."""
+PAPER_TURN_SD = math.pi / 6.0 / math.sqrt(3.0)
+"""The standard deviation of the paper's turn ``U(-pi/6, pi/6)`` (0.302 rad)."""
+SMOOTH_TAU = 5.0
+"""Steps: the time constant of the smooth behaviour's turning rate (an Ornstein-Uhlenbeck
+process sampled once a step; docs/DESIGN.md, "The smooth behaviour")."""
+SMOOTH_A = math.exp(-1.0 / SMOOTH_TAU)
+"""The turning rate's lag-1 autocorrelation, ``exp(-1 / tau)`` (0.819)."""
+SMOOTH_SD = PAPER_TURN_SD * math.sqrt((1.0 - SMOOTH_A) / (1.0 + SMOOTH_A))
+"""The turning rate's stationary sd (0.095 rad): the heading then diffuses as fast as under
+the paper's behaviour over many steps (the variance of a sum of n rates tends to
+``n SD^2 (1 + a) / (1 - a) = n PAPER_TURN_SD^2``)."""
+SMOOTH_KICK = SMOOTH_SD * math.sqrt(1.0 - SMOOTH_A * SMOOTH_A)
+"""The sd of a step's innovation, so that the rate stays at SMOOTH_SD."""
+
+
+def check_behaviour(name: str) -> int:
+    """The id of behaviour ``name``; InputError naming ``--behaviour`` when it is unknown."""
+    if name not in BEHAVIOURS:
+        raise InputError(f"--behaviour must be one of {', '.join(BEHAVIOURS)}, got {name!r}")
+    return BEHAVIOURS.index(name)
+
+
+@numba.njit(cache=True)
+def reflex(u):
+    """The wall reflex of every behaviour from a uniform in [0, 1): ``(0, r)``,
+    ``r ~ U(pi - pi/10, pi + pi/10)`` (turn around)."""
+    return 0.0, math.pi - math.pi / 10.0 + u * (math.pi / 5.0)
+
+
 @numba.njit(cache=True)
 def behaviour(min_reading, u0, u1):
     """The paper's wall-avoiding random behaviour (section IV.C) from two uniforms in [0, 1).
@@ -163,8 +197,25 @@ def behaviour(min_reading, u0, u1):
     else ``d ~ U(0, 1)``, ``r ~ U(-pi/6, pi/6)``. Returns ``(d, r)``.
     """
     if min_reading < TURN_THRESHOLD:
-        return 0.0, math.pi - math.pi / 10.0 + u1 * (math.pi / 5.0)
+        return reflex(u1)
     return u0, -math.pi / 6.0 + u1 * (math.pi / 3.0)
+
+
+@numba.njit(cache=True)
+def smooth_behaviour(min_reading, u0, u1, u2, u3, rate):
+    """A RatInABox-like smooth random motion from four uniforms in [0, 1) and the turning
+    rate of the step before: the rate follows an Ornstein-Uhlenbeck process (mean 0, time
+    constant SMOOTH_TAU steps, stationary sd SMOOTH_SD; its normal innovation by Box-Muller
+    from ``u2, u3``), the forward speed is ``u0`` (``U(0, 1)``, the paper's range), and the
+    paper's reflex (from ``u1``) replaces the command when a reading is below 1; the rate
+    runs on underneath. Returns ``(d, r, rate)``.
+    """
+    z = math.sqrt(-2.0 * math.log(1.0 - u2)) * math.cos(2.0 * math.pi * u3)
+    rate = SMOOTH_A * rate + SMOOTH_KICK * z
+    if min_reading < TURN_THRESHOLD:
+        d, r = reflex(u1)
+        return d, r, rate
+    return u0, rate, rate
 
 
 @numba.njit(cache=True)
@@ -234,8 +285,12 @@ def _rollout(
     sensors,
     motors,
     poses,
+    kind,
+    rate,
 ):
-    """Run ``len(uniforms)`` steps of the behaviour from pose (x, y, heading), filling the outputs.
+    """Run ``len(uniforms)`` steps of behaviour ``kind`` (``PAPER``, ``SMOOTH``: its uniforms
+    a step are ``uniforms[t]``, its state ``rate``) from pose (x, y, heading), filling the
+    outputs.
 
     Row t: ``poses[t]`` is where ``sensors[t]`` is read; ``motors[t]`` is chosen from it and
     leads to row t + 1. The behaviour reads the paper's five rays, noiseless (a reflex the
@@ -246,7 +301,7 @@ def _rollout(
     ``motor_noise[t]`` (T, 2) is added to the command executed, not to the one recorded; the
     translation stays within [0, 0.99 x the distance straight ahead], so the noise never
     carries the agent through a wall. An empty array (0, .) means none of that kind.
-    Returns the pose after the last step.
+    Returns the pose after the last step and the behaviour's state (its turning rate).
     """
     n_rays = angles.shape[0]
     ca = np.cos(angles)
@@ -300,7 +355,11 @@ def _rollout(
             if drop_run and dropped[t, i]:
                 value = max_range
             sensors[t, i] = min(max(value, 0.0), max_range)
-        d, r = behaviour(lowest, uniforms[t, 0], uniforms[t, 1])
+        if kind == SMOOTH:
+            u = uniforms[t]
+            d, r, rate = smooth_behaviour(lowest, u[0], u[1], u[2], u[3], rate)
+        else:
+            d, r = behaviour(lowest, uniforms[t, 0], uniforms[t, 1])
         motors[t, 0] = d
         motors[t, 1] = r
         if motor_run:
@@ -311,7 +370,7 @@ def _rollout(
         x = x + d * ch
         y = y + d * sh
         heading = wrap_angle(heading + r)
-    return x, y, heading
+    return x, y, heading, rate
 
 
 def _heading(rng: np.random.Generator) -> float:
@@ -371,10 +430,14 @@ def rollout(
     dropout: float = 0.0,
     motor_noise_std: float = 0.0,
     grid: WallGrid | None = None,
+    behaviour: str = "paper",
 ) -> Rollout:
-    """Run the paper's behaviour for ``steps`` steps from a random start; float64 arrays.
+    """Run ``behaviour`` (``BEHAVIOURS``: the paper's, or the smooth random motion) for
+    ``steps`` steps from a random start; float64 arrays.
 
-    The generator draws the start pose, then two uniforms per step, chunk after chunk; the
+    The generator draws the start pose, then ``UNIFORMS`` uniforms per step (the paper's
+    behaviour two), chunk after chunk; the smooth behaviour's turning rate starts at 0 and is
+    carried from chunk to chunk; the
     noises come from three child generators spawned from it (reading noise, dropouts, motor
     noise, in that order, and only when one is asked for), so their draws never interleave
     with the uniforms: the bytes depend on the seed alone, not on ``chunk``. The behaviour
@@ -390,6 +453,7 @@ def rollout(
     if steps < 1:
         raise ValueError(f"steps must be at least 1, got {steps}")
     check_noise(noise_std, noise_kind, dropout, motor_noise_std)
+    kind = check_behaviour(behaviour)
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     segments = np.ascontiguousarray(world.segments)
     if grid is None:
@@ -403,10 +467,11 @@ def rollout(
     poses = np.empty((steps, 3))
     x, y, heading = sample_start(world, rng)
     children = rng.spawn(3) if (noise_std or dropout or motor_noise_std) else None
+    rate = 0.0
     for begin in range(0, steps, chunk):
         stop = min(begin + chunk, steps)
         c = stop - begin
-        uniforms = rng.random((c, 2))
+        uniforms = rng.random((c, UNIFORMS[kind]))
         noise = children[0].normal(0.0, noise_std, (c, n)) if noise_std else np.zeros((0, n))
         dropped = children[1].random((c, n)) < dropout if dropout else np.zeros((0, n), bool)
         motor = (
@@ -414,7 +479,7 @@ def rollout(
             if motor_noise_std
             else np.zeros((0, 2))
         )
-        x, y, heading = _rollout(
+        x, y, heading, rate = _rollout(
             segments,
             dims,
             start_,
@@ -433,6 +498,8 @@ def rollout(
             sensors[begin:stop],
             motors[begin:stop],
             poses[begin:stop],
+            kind,
+            rate,
         )
         if progress is not None:
             progress(stop)

@@ -27,7 +27,16 @@ import numpy as np
 
 from sensorimotor.errors import InputError
 from sensorimotor.files import atomic_path, check_input
-from sensorimotor.sim.core import DEFAULT_LAYOUT, MAX_RAYS, SensorLayout, read_sensors, rollout
+from sensorimotor.sim.core import (
+    BEHAVIOURS,
+    DEFAULT_LAYOUT,
+    MAX_RAYS,
+    SMOOTH_SD,
+    SMOOTH_TAU,
+    SensorLayout,
+    read_sensors,
+    rollout,
+)
 from sensorimotor.sim.world import (
     BUILTIN_WORLDS,
     NAME_PATTERN,
@@ -83,6 +92,12 @@ class Database:
     @property
     def max_range(self) -> float:
         return float(self.meta.get("sensor_layout", {}).get("max_range", 10.0))
+
+    @property
+    def behaviour(self) -> str:
+        """The behaviour that recorded it (``sim.core.BEHAVIOURS``): ``meta.behaviour_name``,
+        the paper's where the meta has none (every database made before there were two)."""
+        return self.meta.get("behaviour_name", "paper")
 
     @property
     def layout(self) -> SensorLayout:
@@ -159,14 +174,17 @@ def generate(
     noise_kind: str = "absolute",
     dropout: float = 0.0,
     motor_noise_std: float = 0.0,
+    behaviour: str = "paper",
 ) -> Database:
-    """Roll the paper's behaviour out for ``steps`` steps and package it as a Database.
+    """Roll ``behaviour`` (the paper's by default) out for ``steps`` steps and package it as a
+    Database.
 
     ``layout`` says what is recorded (any number of rays, any field of view and range); the
     behaviour reads the paper's five rays whatever it is (``sim.rollout``), and the noises are
     ``sim.rollout``'s. The meta records the layout and every noise; the keys of the noises
     the paper has not (``noise_kind``, ``dropout``, ``motor_noise_std``) appear only when one
-    of them is used, so that a paper database keeps its bytes."""
+    of them is used, so that a paper database keeps its bytes; ``behaviour_name`` likewise
+    only for a behaviour other than the paper's."""
     run = rollout(
         world,
         steps,
@@ -177,6 +195,7 @@ def generate(
         noise_kind=noise_kind,
         dropout=dropout,
         motor_noise_std=motor_noise_std,
+        behaviour=behaviour,
     )
     meta = {
         "format": "sensorimotor-database/1",
@@ -185,14 +204,15 @@ def generate(
         "steps": int(steps),
         "sensor_layout": layout.to_dict(),
         "noise_std": float(noise_std),
-        "behaviour": "paper IV.C: min(s) < 1 -> (0, U(pi - pi/10, pi + pi/10)); "
-        "else (U(0, 1), U(-pi/6, pi/6))",
+        "behaviour": BEHAVIOUR_TEXT[behaviour],
         "version": __version__,
     }
     if noise_kind != "absolute" or dropout or motor_noise_std:
         meta["noise_kind"] = noise_kind
         meta["dropout"] = float(dropout)
         meta["motor_noise_std"] = float(motor_noise_std)
+    if behaviour != "paper":
+        meta["behaviour_name"] = behaviour
     if layout.angles != DEFAULT_LAYOUT.angles or layout.max_range < 1:
         meta["behaviour"] += " on the paper's 5 rays (-0.6 to 0.6 rad), cast apart from the layout"
     return Database(
@@ -201,6 +221,16 @@ def generate(
         run.poses.astype(np.float32),
         meta,
     )
+
+
+BEHAVIOUR_TEXT = {
+    "paper": "paper IV.C: min(s) < 1 -> (0, U(pi - pi/10, pi + pi/10)); "
+    "else (U(0, 1), U(-pi/6, pi/6))",
+    "smooth": "smooth: min(s) < 1 -> (0, U(pi - pi/10, pi + pi/10)); else (U(0, 1), rate), "
+    f"rate an Ornstein-Uhlenbeck process (mean 0, time constant {SMOOTH_TAU:g} steps, "
+    f"stationary sd {SMOOTH_SD:.4f} rad) running every step",
+}
+"""``meta.behaviour``: each behaviour in words (the paper's as every database before had it)."""
 
 
 def check_memory(steps: int, bytes_per_step: int = 120) -> None:
@@ -294,6 +324,11 @@ def load_database(path: str | Path) -> Database:
                 raise InputError(f"{path}: meta.world has no 'name'")
             check_builtin_name(world, f"{path}: meta.world")
         _check_layout(meta, arrays["sensors"].shape[1], path)
+        if meta.get("behaviour_name", "paper") not in BEHAVIOURS:
+            raise InputError(
+                f"{path}: meta.behaviour_name must be one of {', '.join(BEHAVIOURS)}, "
+                f"got {meta['behaviour_name']!r}"
+            )
     except InputError:
         raise
     except (ValueError, KeyError, TypeError) as err:
