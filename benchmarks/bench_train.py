@@ -37,6 +37,7 @@ import time
 import torch
 from rich.console import Console
 from rich.table import Table
+from torch import nn
 
 from sensorimotor.learn.batches import epoch_generator, epoch_orders
 from sensorimotor.learn.config import TrainConfig
@@ -57,6 +58,7 @@ EPOCH_STEPS = 800_000  # train split of a 1 M-step database
 TARGETS = {"s": 190e3, "sm": 130e3, "rec-s": 320e3, "rec-sm": 320e3}  # samples/s
 STACK_TARGET = 3.0  # five stacked seeds: total samples/s over one seed's plain loop
 NAMES = {"s": "S", "sm": "SM", "rec-s": "Rec-S", "rec-sm": "Rec-SM", "rec-sma": "Rec-SMA"}
+STACKED_LSTM_GOAL = 4.0  # issue 38: five stacked seeds over the plain nn.LSTM loop
 PAPER_SEED_MINUTES = 30  # issue 32: one paper-scale Rec-SMA seed on one core
 
 
@@ -66,6 +68,32 @@ def train_split(n: int, device: str = "cpu") -> tuple[torch.Tensor, torch.Tensor
     db = generate(load_world("square"), n + 1, seed=0)
     s = torch.from_numpy(scale_sensors(db.sensors, db.max_range))
     return s.to(device), torch.from_numpy(scale_motors(db.motors)).to(device)
+
+
+def train_flops(kind: str) -> float:
+    """Floating-point operations of one training sample (one step of one stream): 6 per
+    multiply-add of the forward pass (2 forward, 4 backward: the input's and the weight's
+    gradients). The element-wise work (gates, activations, Adam) is not counted."""
+    macs = 0
+    for mod in build_model(kind).modules():
+        if isinstance(mod, nn.Linear):
+            macs += mod.in_features * mod.out_features
+        elif isinstance(mod, nn.LSTM):
+            h = mod.hidden_size
+            for layer in range(mod.num_layers):
+                macs += 4 * h * ((mod.input_size if layer == 0 else h) + h)
+    return 6.0 * macs
+
+
+def sgemm_peak(size: int = 1024, repeats: int = 5) -> float:
+    """FLOP/s of one thread's float32 matrix product (MKL through ``torch.mm``) on square
+    matrices large enough to run at the core's arithmetic speed: the reference the training
+    passes are measured against."""
+    a, b = torch.randn(size, size), torch.randn(size, size)
+    out = torch.empty(size, size)
+    torch.mm(a, b, out=out)
+    best = min(timed(lambda i: torch.mm(a, b, out=out), repeats)[0] for _ in range(2))
+    return 2.0 * size**3 / best
 
 
 def sync(device) -> None:
@@ -248,6 +276,12 @@ def main() -> None:
     )
     console.print(f"before: {load()}")
 
+    peak = sgemm_peak()  # on the CPU; a GPU row's share of it says nothing
+    flops = {kind: train_flops(kind) for kind in NAMES}
+    console.print(
+        f"peak: one thread's float32 matrix product (MKL, 1024 x 1024 x 1024): "
+        f"{peak / 1e9:.0f} GFLOP/s"
+    )
     n = batches * BATCH
     s, m = train_split(n, device)
     warm = (s[: 20 * BATCH + 1], m[: 20 * BATCH + 1])
@@ -260,6 +294,8 @@ def main() -> None:
         "total (cpu time)",
         "vs plain",
         "800k epoch",
+        "GFLOP/s",
+        "of peak",
         "target",
     ):
         table.add_column(col, justify="left" if col in ("model", "path", "target") else "right")
@@ -273,6 +309,8 @@ def main() -> None:
             "" if cpu_total is None else f"{cpu_total / 1e3:,.0f} k",
             f"{total / plain:.2f}x",
             f"{EPOCH_STEPS / per_seed:.1f} s",
+            f"{total * flops[kind] / 1e9:.0f}",
+            f"{total * flops[kind] / peak:.0%}",
             target,
         )
 
@@ -313,6 +351,7 @@ def main() -> None:
             )
         console.print(f"  {kind} done ({load()})")
 
+    bounds = {}  # recurrent kind: (plain, five stacked) samples/s
     rec_n = max(batches, 200) * BATCH  # at least 10 chunks of 20 steps in every stream
     warm_n = 2 * HORIZON * BATCH
     for kind in ("rec-s", "rec-sm"):
@@ -338,6 +377,7 @@ def main() -> None:
             one = one or total
             target = "" if k == 1 else f"{total / one:.2f}x K = 1"
             row(kind, f"stacked LSTM, K = {k}", total / k, total, cpu, plain, target)
+            stacked_five = total
         total, cpu = bench_rec(kind, 0, rec_n, warm_n, 2, repeats)
         row(kind, "2 processes, plain loop", total / 2, total, cpu, plain)
         total, cpu = bench_rec(kind, 5, rec_n, warm_n, 2, repeats)
@@ -346,6 +386,7 @@ def main() -> None:
         row(kind, "2 processes, stacked K = 5", total / 10, total, cpu, plain, target)
         console.print(f"  {kind} done ({load()})")
         rec_sm_plain = plain
+        bounds[kind] = (plain, stacked_five)
     if device == "cpu":
         c = TrainConfig.of("rec-sma")
         total, cpu = bench_rec("rec-sma", 0, rec_n, warm_n, 1, repeats)
@@ -357,9 +398,19 @@ def main() -> None:
 
     console.print(table)
     console.print(f"after: {load()}")
+    for kind, (plain, five) in bounds.items():  # issue 38: five stacked seeds at 4x the plain loop
+        need = STACKED_LSTM_GOAL * plain * flops[kind]
+        console.print(
+            f"{NAMES[kind]}: {STACKED_LSTM_GOAL:.0f}x the plain loop would be "
+            f"{need / 1e9:.0f} GFLOP/s of products alone, {need / peak:.0%} of the peak; "
+            f"five stacked seeds run at {five / plain:.2f}x ({five * flops[kind] / peak:.0%})"
+        )
     console.print(
         "per seed: samples/s of each seed; total: of all seeds (or processes) together; "
-        "800k epoch: one epoch of every seed over 800,000 steps at the per-seed rate."
+        "800k epoch: one epoch of every seed over 800,000 steps at the per-seed rate; "
+        "GFLOP/s: the total's matrix-product arithmetic (train_flops), of peak: its share of "
+        "one thread's float32 matrix product measured above (Rec-SMA's open loop counted as "
+        "one-step samples)."
     )
 
 

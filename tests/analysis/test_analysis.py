@@ -454,3 +454,30 @@ def test_the_corner_probe_reads_a_linear_code_and_ignores_noise():
     assert probe_auc(coded, event) > 0.95
     assert abs(probe_auc(noise, event) - 0.5) < 0.1
     assert probe_auc(noise, np.zeros(4000, dtype=bool)) is None  # one class: no AUC
+
+
+def test_a_recurrent_analysis_leaves_out_the_burn_in_and_a_memoryless_one_does_not(
+    square_db_path, tmp_path
+):
+    """The first BURN_IN test steps of a recurrent model come from the zero state: left out of
+    the clusters, the events and the figures, and said in metrics.json."""
+    from sensorimotor.analysis.analyze import burn_in
+    from sensorimotor.analysis.probes import BURN_IN
+    from sensorimotor.learn.config import TrainConfig
+    from sensorimotor.learn.evaluate import load_run
+    from sensorimotor.learn.train import train
+
+    test_steps = len(load_database(square_db_path).take("test"))
+    for kind, expected in (("rec-s", BURN_IN), ("s", 0)):
+        run = tmp_path / kind
+        train(square_db_path, run, TrainConfig(model=kind, seed=0, max_epochs=1, threads=1))
+        an.analyze_files(run, square_db_path, tmp_path / f"an_{kind}")
+        metrics = json.loads((tmp_path / f"an_{kind}" / "metrics.json").read_text())
+        assert metrics["burn_in"] == expected
+        assert metrics["analysis"]["n_steps"] == test_steps - expected
+        with np.load(tmp_path / f"an_{kind}" / "pca.npz", allow_pickle=False) as z:
+            assert len(z["labels"]) == len(z["min_reading"]) == test_steps - expected
+    rec = load_run(tmp_path / "rec-s")
+    assert burn_in(rec, BURN_IN + 19) == 0  # too short to leave any out: all of it is analysed
+    assert burn_in(rec, BURN_IN + 20) == BURN_IN
+    assert burn_in("raw", 10_000) == 0

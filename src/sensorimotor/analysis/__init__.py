@@ -51,7 +51,8 @@ from sensorimotor.analysis.representation import (
 # 2: KNN-MSE averages ties between identical representations (was: broken by search order).
 # 3: corners and wall ends in view by the database's own lasers (was: always the paper's).
 # 4: each event's linear-probe AUC beside its best cluster (events.NAME.probe_auc).
-METRICS_VERSION = 4
+# 5: a recurrent model's first BURN_IN test steps (from the zero state) are left out (burn_in).
+METRICS_VERSION = 5
 
 __all__ = [
     "KMEANS_N_INIT",

@@ -12,7 +12,7 @@ clusters on the world they were fitted on).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -132,11 +132,22 @@ def event_probe_fit(run, db: Database) -> tuple[np.ndarray, dict[str, np.ndarray
     return z_fit, events
 
 
+def burn_in(run, steps: int) -> int:
+    """Leading steps of a split an analysis leaves out: ``BURN_IN`` for a recurrent model, whose
+    first states come from the zero state (on a short split they formed clusters of their
+    own), when at least ``N_CLUSTERS`` steps remain; else 0."""
+    recurrent = not (isinstance(run, str) and run == RAW) and run.model.config.recurrent
+    return BURN_IN if recurrent and steps - BURN_IN >= N_CLUSTERS else 0
+
+
 def _analyze(
     run, db: Database, seed: int, fitted: RepresentationAnalysis | None = None, fit_probes=False
 ):
+    """``analyze_representation`` of ``run`` on ``db``'s test split after its burn-in; returns
+    the analysis and the burn-in."""
     z = representation_of(run, db)
     part = db.take(SPLIT)
+    start = burn_in(run, len(z))
     kmeans, pca = (fitted.kmeans, fitted.pca) if fitted else (None, None)
     if fitted is not None and z.shape[1] != fitted.kmeans.n_features_in_:
         raise InputError(
@@ -145,10 +156,11 @@ def _analyze(
         )
     world = db.world if db.has_walls else None  # None: the stages that need walls say n/a
     probe_fit = event_probe_fit(run, db) if fit_probes else None
-    return analyze_representation(
-        z, truth_readings(db), part.poses, world, seed, kmeans, pca, db.layout, name=_name(db),
-        probe_fit=probe_fit,
+    result = analyze_representation(
+        z[start:], truth_readings(db)[start:], part.poses[start:], world, seed, kmeans, pca,
+        db.layout, name=_name(db), probe_fit=probe_fit,
     )  # fmt: skip
+    return result, start
 
 
 def _name(db: Database) -> str:
@@ -227,15 +239,18 @@ def analyze_files(
     from sensorimotor.sim.plots import save_figure
 
     run, db, fit_db, out = load_inputs(run, data, fit_data, out, OUTPUTS)
-    source = _analyze(run, fit_db, seed) if fit_db is not None else None
-    result = _analyze(run, db, seed, source, event_probes and fit_db is None)
+    source, fit_start = _analyze(run, fit_db, seed) if fit_db is not None else (None, 0)
+    result, start = _analyze(run, db, seed, source, event_probes and fit_db is None)
     # a transfer's probes would be those of the plain analysis of ``data``: left to it
     probes = probe_places(run, db) if probes and fit_db is None else None
     out = _out_dir(out)  # made only once the analysis has succeeded
     # metrics.json, written last, marks a whole analysis: a folder that a failure (a full
     # disk) leaves with this analysis' figures has no metrics of an earlier one beside them
     (out / "metrics.json").unlink(missing_ok=True)
-    part = db.take(SPLIT)
+    whole = db.take(SPLIT)
+    part = replace(  # the steps analysed
+        whole, sensors=whole.sensors[start:], motors=whole.motors[start:], poses=whole.poses[start:]
+    )
     files = []
     pca_title = "PCA" + (f" fitted on {_name(fit_db)}" if fit_db is not None else "")
     ax = plot_pca(result.pc, part.sensors.min(axis=1), title=f"{pca_title}: {_name(db)}")
@@ -262,11 +277,11 @@ def analyze_files(
         )
         fit_fig = plot_clusters(
             _walls(fit_db),
-            fit_db.take(SPLIT).poses,
+            fit_db.take(SPLIT).poses[fit_start:],
             source.labels,
             seed,
             titles=source.cluster_titles(),
-            suptitle=f"{name} on {_name(fit_db)}: {len(fit_db.take(SPLIT)):,} test steps",
+            suptitle=f"{name} on {_name(fit_db)}: {len(source.labels):,} test steps",
         )
         files += save_figure(fit_fig, out / "clusters_fit.png", svg=svg)
     files += save_figure(fig, out / "clusters.png", svg=svg)
@@ -277,6 +292,7 @@ def analyze_files(
         "data": str(data),
         "fit_data": None if fit_data is None else str(fit_data),
         "split": SPLIT,
+        "burn_in": start,
         "version": __version__,
         "analysis": result.metrics,
         "fit_analysis": None if source is None else source.metrics,

@@ -65,6 +65,8 @@ def analyze(
     else:
         print(f"{m['model']} on {m['data']}:")
     print("\n".join(summary_lines(m["analysis"])))
+    if m["burn_in"]:
+        print(f"  (the first {m['burn_in']} test steps, from the zero state, left out)")
     if m["fit_analysis"] is None:
         print("\n".join(probe_lines(m["probes"])))
     err_console.print("wrote " + ", ".join(str(p) for p in result.files), soft_wrap=True)
