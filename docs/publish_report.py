@@ -22,9 +22,12 @@ RUN_FILES = ("config.json", "history.csv", "result.json", "model.pt")
 def publish(report_dir: Path, docs: Path) -> None:
     md = (report_dir / "report.md").read_text()
     dest = docs / "results"
-    if dest.exists():
-        shutil.rmtree(dest)
-    for rel in re.findall(r"!\[[^\]]*\]\(([^)]+)\)", md):
+    images = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", md)
+    # replace only the report's own folders: the experiments' (map, rl, memory, ...) stay
+    for folder in {Path(rel).parts[0] for rel in images if len(Path(rel).parts) > 1} | {"runs"}:
+        if (dest / folder).exists():
+            shutil.rmtree(dest / folder)
+    for rel in images:
         out = dest / rel
         out.parent.mkdir(parents=True, exist_ok=True)
         im = Image.open(report_dir / rel).convert("RGB")

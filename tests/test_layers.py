@@ -20,6 +20,7 @@ BASE = {"errors", "files", "version", "stats"}
 LAYERS = {
     "errors": set(),
     "version": set(),
+    "portable": set(),  # environment settings the numerical libraries read when they load
     "files": {"errors"},
     "stats": {"errors"},
     "sim": BASE,
@@ -35,7 +36,7 @@ LAYERS = {
     "cli": BASE
     | {"sim", "learn", "analysis", "jobs", "pipeline", "report", "rl", "reproduce"},
     "__main__": {"cli"},
-    "__init__": {"errors", "version", "sim", "learn", "analysis", "reproduce"},
+    "__init__": {"errors", "version", "portable", "sim", "learn", "analysis", "reproduce"},
 }
 # learn.fast: the speed of the one loop. It reads the model definition, the batching and the
 # optimiser's private kernels, and the loop reaches it through one door (``learn.engine``).

@@ -28,8 +28,12 @@ from __future__ import annotations
 
 import importlib
 
-from sensorimotor.errors import InputError
-from sensorimotor.version import __version__
+from sensorimotor import portable
+
+portable.apply()  # before numpy, numba or torch load (SENSORIMOTOR_PORTABLE=1)
+
+from sensorimotor.errors import InputError  # noqa: E402
+from sensorimotor.version import __version__  # noqa: E402
 
 # public name -> the module that defines it
 _API = {
