@@ -170,7 +170,7 @@ def test_the_public_api_resolves(name):
 
 def test_a_model_kinds_name_is_written_in_the_registry_alone():
     """Facts written once: no module but the registry spells a kind's name as a string (a
-    list of kinds is read from ``learn.models.KINDS``, a particular kind named by its constant)."""
+    list of kinds is read from ``learn.kinds.KINDS``, a particular kind named by its constant)."""
     from sensorimotor.learn.models import KINDS
 
     spelled: dict[str, set[str]] = {}
@@ -182,4 +182,4 @@ def test_a_model_kinds_name_is_written_in_the_registry_alone():
         for node in ast.walk(tree):
             if isinstance(node, ast.Constant) and node.value in KINDS and id(node) not in prose:
                 spelled.setdefault(name, set()).add(node.value)
-    assert set(spelled) <= {"sensorimotor.learn.models", "sensorimotor.cli.app"}, spelled
+    assert set(spelled) <= {"sensorimotor.learn.kinds"}, spelled

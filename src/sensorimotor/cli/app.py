@@ -16,6 +16,7 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
 from sensorimotor.errors import InputError
+from sensorimotor.learn.kinds import KINDS
 from sensorimotor.sim import MAX_LASER_RANGE
 from sensorimotor.version import __version__
 
@@ -146,12 +147,10 @@ MAX_SIZE = 200.0  # a floor plan's side (sim.floorplan.MAX_SIZE)
 MAX_DOOR = 100.0  # a doorway's width
 MAX_CLEARANCE = 100.0  # units of free width an imported map keeps (sim.rosmap.CLEARANCE: 2)
 
-ModelArg = Annotated[str, typer.Argument(help="Model: s, sm, rec-s or rec-sm.")]
+ModelArg = Annotated[str, typer.Argument(help=f"Model: one of {', '.join(KINDS)}.")]
 
 
 def _check_model(model: str) -> str:
-    from sensorimotor.learn.models import KINDS
-
     if model not in KINDS:
         raise InputError(f"unknown model {model!r}: use one of {', '.join(KINDS)}")
     return model
