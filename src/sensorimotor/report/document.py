@@ -111,7 +111,8 @@ def _summary(rep, verdicts: list) -> list[Block]:
         b.append(
             p(
                 f"**Needs `--scale paper`.** {len(beyond)} of the claims below are beyond the "
-                f"{rep.scale.name} scale (measured: its models are too little trained for them) "
+                f"{rep.scale.name} scale (its databases are too small for them, not only its "
+                "epochs: measured in docs/DESIGN.md, 'The quick scale') "
                 "and are not supported or not judged here; their rows say so."
             )
         )
