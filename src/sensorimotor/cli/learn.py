@@ -18,7 +18,7 @@ from sensorimotor.cli.app import (
     writes,
 )
 from sensorimotor.errors import InputError
-from sensorimotor.learn.models import S
+from sensorimotor.learn.kinds import S
 from sensorimotor.sim import MAX_SEED
 
 SET_HELP = (
