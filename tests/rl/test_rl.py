@@ -174,7 +174,7 @@ def test_the_verdict_needs_every_motor_feature_set_above_raw_by_its_interval():
 def tiny_config(**kw) -> RLConfig:
     base = {"task": "corner", "features": ("raw", "rec-s"), "seeds": 1, "steps": 128,
             "runs": str(RUNS), "eval_every": 64, "eval_episodes": 4, "n_envs": 2,
-            "transfer": ("square",), "ppo": TINY_PPO}  # fmt: skip
+            "transfer": ("square",), "ppo": TINY_PPO, "stats_steps": 64}  # fmt: skip
     return RLConfig(**{**base, **kw})
 
 
@@ -191,6 +191,12 @@ def test_a_grid_resumed_after_a_lost_agent_gives_the_same_bytes(tmp_path):
     assert set(rl["verdicts"]) == {"success", "success_stochastic"}
     assert (tmp_path / "rl.png").stat().st_size > 0
     assert (tmp_path / "raw__s0" / "policy.zip").is_file()
+    spread = rl["results"]["raw"]["spread"]  # sd per dimension before standardisation
+    assert len(spread["sd"]) == 5
+    assert spread["steps"] == 64
+    assert any(s > 0 for s in spread["sd"])  # (a ray may read the range all along)
+    agent = json.loads((tmp_path / "raw__s0" / "result.json").read_text())
+    assert agent["standardisation"]["sd"] == spread["sd_per_seed"][0]
     shutil.rmtree(tmp_path / "rec-s__s0")  # as if stopped while training it
     (tmp_path / "raw__s0" / "policy.zip").unlink()  # a finished agent is not trained again
     run_grid(config, tmp_path)

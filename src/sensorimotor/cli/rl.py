@@ -53,6 +53,14 @@ def rl(
     eval_episodes: Annotated[
         int, typer.Option(min=1, max=MAX_EPISODES, help="Episodes an evaluation.")
     ] = 50,
+    stats_steps: Annotated[
+        int,
+        typer.Option(
+            min=0,
+            max=MAX_AGENT_STEPS,
+            help="Steps of the rollout whose statistics standardise the features (0: none).",
+        ),
+    ] = 10_000,
     backend: BackendOpt = "local",
     address: AddressOpt = None,
     workers: Annotated[
@@ -76,7 +84,7 @@ def rl(
     worlds = tuple(w.strip() for w in transfer.split(",") if w.strip())
     config = RLConfig(task, world, tuple(names), seeds, steps,
                       None if runs is None else str(runs), trained_on,
-                      worlds, eval_every, eval_episodes)  # fmt: skip
+                      worlds, eval_every, eval_episodes, stats_steps=stats_steps)  # fmt: skip
     check_inputs(config)  # before the progress bar: an error is one line
     check_backend(backend, address, workers)
     if backend == "ray" or (workers or 1) > 1:  # agents as jobs: worker processes, Ray tasks

@@ -19,7 +19,8 @@ random   10   z_s of an *untrained* Recurrent-SM encoder (same shape, seeded wei
 
 z_s depends on the readings alone in every model (the motor command enters the predictor,
 not z_s; see ``learn.models``), so the features of step t exist before the agent acts.
-All parallel environments go through the encoder in one batched call per step.
+All parallel environments go through the encoder in one batched call per step. Every feature
+set is standardised by the statistics of a training rollout, frozen (``rl.standardise``).
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ from sensorimotor.errors import InputError
 from sensorimotor.learn.evaluate import load_run
 from sensorimotor.learn.models import KINDS, REC_SM, SensorimotorEncoder, build_model
 from sensorimotor.rl import RUNS_ENV
+from sensorimotor.rl.standardise import Standardisation
 from sensorimotor.sim.core import DEFAULT_LAYOUT, MAX_RANGE
 from sensorimotor.sim.database import scale_sensors
 
@@ -169,14 +171,20 @@ class FeatureVecEnv(VecEnvWrapper):
     """A vectorised task environment whose observations are one feature set (module doc).
 
     ``venv`` holds task environments (5 readings as observation, ``info["pose"]``), built by
-    ``make_vec_env`` or by hand. The recurrent state of each environment starts at zero on
-    ``reset`` and after that environment's episode ends; ``terminal_observation`` in ``infos``
-    (what PPO bootstraps from at a truncation) gets the features of the last step, computed
-    with the state of the episode that ended.
+    ``make_vec_env`` or by hand. With ``standardisation`` every observation (the terminal ones
+    too) is standardised by those frozen statistics (``rl.standardise``). The recurrent
+    state of each environment starts at zero on ``reset`` and after that environment's
+    episode ends; ``terminal_observation`` in ``infos`` (what PPO bootstraps from at a
+    truncation) gets the features of the last step, computed with the state of the episode
+    that ended.
     """
 
     def __init__(
-        self, venv: VecEnv, features: str, encoder: SensorimotorEncoder | None = None
+        self,
+        venv: VecEnv,
+        features: str,
+        encoder: SensorimotorEncoder | None = None,
+        standardisation: Standardisation | None = None,
     ) -> None:
         fs = feature_set(features)
         if (encoder is None) != (fs.kind is None):
@@ -185,6 +193,7 @@ class FeatureVecEnv(VecEnvWrapper):
             )
         self.features = features
         self.feature_set = fs
+        self.standardisation = standardisation  # None: the features as computed
         self.encoder = encoder
         size = fs.size or encoder.config.z_sensors
         space = spaces.Box(-np.inf, np.inf, shape=(size,), dtype=np.float32)
@@ -213,12 +222,17 @@ class FeatureVecEnv(VecEnvWrapper):
             h[:, rows], c[:, rows] = h_new, c_new
             return z[:, 0].numpy()  # (n, 10)
 
+    def _out(self, features: np.ndarray) -> np.ndarray:
+        """What the policy sees: the features, standardised when the wrapper has statistics."""
+        s = self.standardisation
+        return features.astype(np.float32) if s is None else s.apply(features)
+
     def reset(self) -> np.ndarray:
         readings = self.venv.reset()  # (N, 5)
         poses = np.array([info["pose"] for info in self.venv.reset_infos])  # (N, 3)
         if self.recurrent:
             self._zero_state()
-        return self._features(readings, poses, np.arange(self.num_envs))
+        return self._out(self._features(readings, poses, np.arange(self.num_envs)))
 
     def step_wait(self):
         readings, rewards, dones, infos = self.venv.step_wait()  # readings: (N, 5)
@@ -226,7 +240,7 @@ class FeatureVecEnv(VecEnvWrapper):
         if done.size:  # the last step of each ended episode, in that episode's state
             last = np.array([infos[i]["terminal_observation"] for i in done])  # (D, 5)
             poses = np.array([infos[i]["pose"] for i in done])  # (D, 3)
-            for i, f in zip(done, self._features(last, poses, done), strict=True):
+            for i, f in zip(done, self._out(self._features(last, poses, done)), strict=True):
                 infos[i]["terminal_observation"] = f
             if self.recurrent:
                 for part in self.state:
@@ -237,4 +251,5 @@ class FeatureVecEnv(VecEnvWrapper):
                 for i in range(self.num_envs)
             ]
         )  # (N, 3): where each observation was read (the new episode's start where reset)
-        return self._features(readings, poses, np.arange(self.num_envs)), rewards, dones, infos
+        features = self._out(self._features(readings, poses, np.arange(self.num_envs)))
+        return features, rewards, dones, infos

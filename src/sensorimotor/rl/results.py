@@ -75,12 +75,28 @@ def summary_lines(rl: dict) -> list[str]:
             where = "".join(f", {w} {t[score]['mean']:.2f}" for w, t in r["transfer"].items())
             lines.append(f"  {name}: {fmt_ci(ok)} IQM {ok['iqm']:.2f}{where}")
         v = rl["verdicts"][score]
+        if score == HEADLINE:
+            lines += spread_lines(rl)
         if verdict_holds(v["motors_help"]) is not None:
             yes = "supported" if verdict_holds(v["motors_help"]) else "not supported"
             lines.append(f"  {CLAIM}: {yes}")
         if verdict_holds(v["pose_beats_random"]) is not None:
             lines.append(f"  pose - random: {fmt_ci(v['pose_beats_random']['difference'], '+')}")
     return lines
+
+
+def spread_range(r: dict) -> str:
+    """A feature set's per-dimension sd before standardisation as "lowest-highest"."""
+    s = r.get("spread")
+    if s is None:
+        return "not standardised"
+    return f"{min(s['sd']):.3g}-{max(s['sd']):.3g}"
+
+
+def spread_lines(rl: dict) -> list[str]:
+    """One line: each feature set's spread before standardisation (``spread_range``)."""
+    parts = ", ".join(f"{n} {spread_range(r)}" for n, r in rl["results"].items())
+    return [f"  sd per dimension before standardisation: {parts}"]
 
 
 HEADLINE = "success_stochastic"
