@@ -29,10 +29,10 @@ from sensorimotor.rl.features import (
     needs_runs,
     parse_features,
 )
-from sensorimotor.rl.results import summary, verdicts
+from sensorimotor.rl.results import fmt_ci, summary, verdicts
 from sensorimotor.rl.runner import EVAL_SEED, RLConfig, evaluate, run_grid
 from sensorimotor.sim.database import scale_sensors
-from sensorimotor.stats import BEFORE, t_interval
+from sensorimotor.stats import BEFORE, CHOSEN, Verdict, bootstrap_interval, t_interval
 
 RUNS = Path(__file__).parents[2] / "docs" / "results" / "runs"
 TINY_PPO = {"n_steps": 32, "batch_size": 64, "n_epochs": 1, "learning_rate": 3e-4,
@@ -141,8 +141,19 @@ def test_a_summary_has_student_t_intervals_below_ten_seeds_and_the_bootstrap_fro
         0.20833333333333334,
         0.44166666666666665,
     )
+    # both intervals beside the one read: Student-t and the percentile bootstrap
+    assert (s["t_ci_low"], s["t_ci_high"]) == t_interval([0.2, 0.4, 0.9])
+    assert (s["bootstrap_ci_low"], s["bootstrap_ci_high"]) == bootstrap_interval([0.2, 0.4, 0.9])
+    assert s["t_ci_low"] < s["bootstrap_ci_low"]  # three seeds: the bootstrap is narrower
+    assert (ten["bootstrap_ci_low"], ten["t_ci_low"]) == (0.24, t_interval(ten["per_seed"])[0])
+    text = fmt_ci(s)
+    assert text == (
+        f"0.50 [t {s['t_ci_low']:.2f}, {s['t_ci_high']:.2f}; "
+        f"bootstrap {s['bootstrap_ci_low']:.2f}, {s['bootstrap_ci_high']:.2f}]"
+    )
     one = summary([0.5])
     assert (one["ci_low"], one["ci_high"], one["interval"]) == (None, None, None)
+    assert one["t_ci_low"] is one["bootstrap_ci_low"] is None
     assert one["iqm_ci_low"] == one["iqm_ci_high"] == 0.5
     with pytest.raises(ValueError, match="finite"):
         summary([0.1, float("nan")])
@@ -169,6 +180,25 @@ def test_the_verdict_needs_every_motor_feature_set_above_raw_by_its_interval():
     assert verdicts(two)["pose_beats_random"]["holds"] is None  # below MIN_SEEDS: not judged
     other = {f: {"success_stochastic": r["success"]} for f, r in results.items()}
     assert verdicts(other, "success_stochastic") == verdicts(results)  # the score is chosen
+
+
+def test_explore_verdicts_are_chosen_on_these_data_while_the_chosen_bonus_is_used():
+    def scores(*v):
+        return {"success": {"per_seed": list(v)}}
+
+    results = {"pose": scores(0.9, 0.8, 1.0), "random": scores(0.0, 0.1, 0.0),
+               "raw": scores(0.1, 0.2, 0.3), "rec-sm": scores(0.5, 0.6, 0.7)}  # fmt: skip
+    chosen = verdicts(results, "success", "explore", RLConfig().ppo)
+    for v in chosen.values():
+        assert v["provenance"] == CHOSEN
+        assert "entropy bonus" in v["where"]
+        assert Verdict.from_dict(v).provenance == CHOSEN
+    assert chosen["pose_beats_random"]["holds"] is True  # the numbers are the same
+    other_bonus = {**RLConfig().ppo, "ent_coef": 0.0}
+    for task, ppo in (("corner", RLConfig().ppo), ("explore", other_bonus)):
+        assert all(
+            v["provenance"] == BEFORE for v in verdicts(results, "success", task, ppo).values()
+        )
 
 
 def tiny_config(**kw) -> RLConfig:

@@ -435,5 +435,8 @@ def aggregate(config: RLConfig, agents: dict[str, list[dict]]) -> dict:
         "version": __version__,
         "headline": HEADLINE,
         "results": results,
-        "verdicts": {k: verdicts(results, k) for k in ("success", "success_stochastic")},
+        "verdicts": {
+            k: verdicts(results, k, config.task, config.ppo)
+            for k in ("success", "success_stochastic")
+        },
     }
