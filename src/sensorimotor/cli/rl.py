@@ -25,10 +25,13 @@ from sensorimotor.rl import RUNS_ENV
 @app.command()
 @writes(folder="out")
 def rl(
-    task: Annotated[str, typer.Argument(help="corner, doorway or explore.")],
+    task: Annotated[str, typer.Argument(help="corner, doorway, explore or homing.")],
     world: Annotated[str, typer.Option(help="World the agents learn in.")] = "rooms1",
     features: Annotated[
-        str, typer.Option(help="Comma-separated: pose, raw, s, sm, rec-s, rec-sm, random.")
+        str,
+        typer.Option(
+            help="Comma-separated: pose, raw, s, sm, rec-s, rec-sm, rec-sma, random, pose+raw."
+        ),
     ] = "pose,raw,rec-sm,random",
     seeds: Annotated[
         int, typer.Option(min=1, max=MAX_SEEDS, help="Agents per feature set: seeds 0..N-1.")
@@ -41,7 +44,7 @@ def rl(
         Path | None,
         typer.Option(
             help="Folder of trained encoder runs ({world}__{kind}__s{seed}, as `reproduce` "
-            "writes in OUT/runs); needed by s, sm, rec-s, rec-sm, no default.",
+            "writes in OUT/runs); needed by s, sm, rec-s, rec-sm, rec-sma, no default.",
             envvar=RUNS_ENV,
         ),
     ] = None,

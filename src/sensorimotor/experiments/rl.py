@@ -41,25 +41,40 @@ WORLD = "rooms1"  # where the agents learn, on encoders trained there
 TRANSFER = ("square", "rooms2")  # where the final policies are also evaluated
 
 
+OWN_EXPERIMENT = ("homing",)
+"""Tasks left out of this grid: ``homing`` asks for a memory and its oracle ``pose+raw`` and
+Rec-SMA (issue 37: an experiment of its own)."""
+NOT_IN_GRID = ("pose+raw",)  # homing's oracle: no other task needs it
+
+
 def tasks() -> tuple[str, ...]:
-    """The grid's tasks: every registered one (``envs.tasks.TASKS``, read now)."""
+    """The grid's tasks: every registered one (``envs.tasks.TASKS``, read now) but those of
+    ``OWN_EXPERIMENT``."""
     from sensorimotor.rl.runner import TASKS
 
-    return tuple(TASKS)
+    return tuple(t for t in TASKS if t not in OWN_EXPERIMENT)
 
 
 def features() -> tuple[str, ...]:
-    """The grid's feature sets: every one (``rl.features.feature_sets()``, read now)."""
+    """The grid's feature sets: every one (``rl.features.feature_sets()``, read now) whose
+    encoder, if any, the reproduction's paper stages train (``Kind.paper``), but
+    ``NOT_IN_GRID``."""
+    from sensorimotor.learn.models import KINDS
     from sensorimotor.rl.features import feature_sets
 
-    return tuple(feature_sets())
+    return tuple(
+        name
+        for name, f in feature_sets().items()
+        if name not in NOT_IN_GRID and (not f.trained or KINDS[f.kind].paper)
+    )
 
 
 def encoders() -> tuple[str, ...]:
-    """The feature sets read from the reproduction's runs: one per model kind (``KINDS``)."""
+    """The feature sets read from the reproduction's runs: one per paper model kind."""
     from sensorimotor.rl.features import feature_sets
 
-    return tuple(f.kind for f in feature_sets().values() if f.trained)
+    sets = feature_sets()
+    return tuple(sets[f].kind for f in features() if sets[f].trained)
 
 
 @dataclass(frozen=True)
