@@ -99,11 +99,15 @@ def rl(
                 )
 
             result = run_grid(config, out, run_agents=run_agents)
-        err_console.print("\n".join([*summary_lines(result), f"wrote {out}/rl.json, rl.png"]))
+        err_console.print(
+            "\n".join([*summary_lines(result), f"wrote {out}/rl.json, rl.png"]), markup=False
+        )
         return
     order = {(f, s): i for i, (f, s) in enumerate((f, s) for f in names for s in range(seeds))}
     with progress(f"rl {task}: environment steps", len(names) * seeds * steps) as update:
         result = run_grid(
             config, out, lambda f, s, n: update(order[f, s] * steps + n, f"{f} seed {s}")
         )
-    err_console.print("\n".join([*summary_lines(result), f"wrote {out}/rl.json, rl.png"]))
+    err_console.print(
+        "\n".join([*summary_lines(result), f"wrote {out}/rl.json, rl.png"]), markup=False
+    )

@@ -20,7 +20,7 @@ COLORS = {
     REC_SM: "tab:red",
     REC_SMA: "tab:brown",
     "random": "tab:purple",
-    "pose+raw": "dimgray",
+    "pose+raw": "darkgoldenrod",
 }
 SPARE = ("tab:pink", "tab:olive", "tab:cyan", "gold")  # a feature set without a colour
 

@@ -59,7 +59,7 @@ class RLConfig:
     """One experiment: a task in a world, PPO's settings, how it is evaluated."""
 
     task: str = "corner"
-    """A task of ``envs.tasks.TASKS`` (corner, doorway, explore)."""
+    """A task of ``envs.tasks.TASKS`` (corner, doorway, explore, homing)."""
     world: str = "rooms1"
     """The world the agents learn in."""
     features: tuple[str, ...] = ("pose", "raw", REC_SM, "random")
