@@ -17,6 +17,8 @@ from sensorimotor.experiments import rl as rl_stage
 from sensorimotor.jobs.workers import run_jobs
 from sensorimotor.report.blocks import to_markdown
 from sensorimotor.rl.results import summary, verdicts
+from sensorimotor.rl.runner import RLConfig
+from sensorimotor.stats import BEFORE, CHOSEN
 
 RUNS = Path(__file__).parents[2] / "docs" / "results" / "runs"  # the shipped Rooms1 encoders
 
@@ -123,6 +125,14 @@ def test_the_verdicts_hold_and_fail_by_their_thresholds():
     lines = rl_stage.verdict_lines(hand_made(good))
     assert [held for _, held in lines] == [True, True, True]
     assert "Student-t below 10 seeds" in lines[1][0]
+    assert "bootstrap" in lines[1][0]  # the bootstrap interval beside the Student-t one
+    assert all(f"Provenance: {BEFORE}" in text for text, _ in lines)
+    explore = hand_made(good)
+    explore["verdicts"] = {
+        s: verdicts({f: {s: summary(v)} for f, v in good.items()}, s, "explore", RLConfig().ppo)
+        for s in ("success_stochastic", "success")
+    }
+    assert all(f"Provenance: {CHOSEN}" in t for t, _ in rl_stage.verdict_lines(explore))
     bad = {**good, "random": [0.3, 0.35, 0.4], "sm": [0.2, 0.2, 0.2]}  # sm - raw: 0, -0.1, +0.1
     lines = rl_stage.verdict_lines(hand_made(bad))
     assert [held for _, held in lines] == [True, False, False]

@@ -21,20 +21,23 @@ from stable_baselines3.common.vec_env import DummyVecEnv
 from conftest import assert_one_line_error
 from sensorimotor.envs import TASKS
 from sensorimotor.errors import InputError
+from sensorimotor.learn.models import build_model
 from sensorimotor.rl import RUNS_ENV, check_extra
 from sensorimotor.rl.features import (
     FeatureVecEnv,
+    _frozen,
     feature_sets,
     load_encoder,
     needs_runs,
     parse_features,
 )
-from sensorimotor.rl.results import summary, verdicts
+from sensorimotor.rl.results import fmt_ci, summary, verdicts
 from sensorimotor.rl.runner import EVAL_SEED, RLConfig, evaluate, run_grid
 from sensorimotor.sim.database import scale_sensors
-from sensorimotor.stats import BEFORE, t_interval
+from sensorimotor.stats import BEFORE, CHOSEN, Verdict, bootstrap_interval, t_interval
 
 RUNS = Path(__file__).parents[2] / "docs" / "results" / "runs"
+UNTRAINED = ("pose", "raw", "random", "pose+raw")  # feature sets read from no run
 TINY_PPO = {"n_steps": 32, "batch_size": 64, "n_epochs": 1, "learning_rate": 3e-4,
             "gamma": 0.99, "gae_lambda": 0.95, "ent_coef": 0.0}  # fmt: skip
 
@@ -51,10 +54,13 @@ def corner_envs(limits: list[int], world: str = "rooms1") -> DummyVecEnv:
 
 @pytest.mark.parametrize("features", list(feature_sets()))
 def test_each_feature_set_has_its_shape_for_every_environment(features):
-    encoder, run = load_encoder(features, RUNS, "rooms1", 0)
-    assert (run is None) == (features in ("pose", "raw", "random"))
+    if (RUNS / f"rooms1__{features}__s0").is_dir() or features in UNTRAINED:
+        encoder, run = load_encoder(features, RUNS, "rooms1", 0)
+        assert (run is None) == (features in UNTRAINED)
+    else:  # a kind without a shipped run (rec-sma): its untrained encoder
+        encoder = _frozen(build_model(features, seed=0))
     venv = FeatureVecEnv(corner_envs([5, 5, 5]), features, encoder)
-    size = {"pose": 4, "raw": 5}.get(features, 10)
+    size = {"pose": 4, "raw": 5, "pose+raw": 11}.get(features, 10)
     assert venv.observation_space.shape == (size,)
     obs = venv.reset()
     assert obs.shape == (3, size)
@@ -141,8 +147,19 @@ def test_a_summary_has_student_t_intervals_below_ten_seeds_and_the_bootstrap_fro
         0.20833333333333334,
         0.44166666666666665,
     )
+    # both intervals beside the one read: Student-t and the percentile bootstrap
+    assert (s["t_ci_low"], s["t_ci_high"]) == t_interval([0.2, 0.4, 0.9])
+    assert (s["bootstrap_ci_low"], s["bootstrap_ci_high"]) == bootstrap_interval([0.2, 0.4, 0.9])
+    assert s["t_ci_low"] < s["bootstrap_ci_low"]  # three seeds: the bootstrap is narrower
+    assert (ten["bootstrap_ci_low"], ten["t_ci_low"]) == (0.24, t_interval(ten["per_seed"])[0])
+    text = fmt_ci(s)
+    assert text == (
+        f"0.50 [t {s['t_ci_low']:.2f}, {s['t_ci_high']:.2f}; "
+        f"bootstrap {s['bootstrap_ci_low']:.2f}, {s['bootstrap_ci_high']:.2f}]"
+    )
     one = summary([0.5])
     assert (one["ci_low"], one["ci_high"], one["interval"]) == (None, None, None)
+    assert one["t_ci_low"] is one["bootstrap_ci_low"] is None
     assert one["iqm_ci_low"] == one["iqm_ci_high"] == 0.5
     with pytest.raises(ValueError, match="finite"):
         summary([0.1, float("nan")])
@@ -171,10 +188,29 @@ def test_the_verdict_needs_every_motor_feature_set_above_raw_by_its_interval():
     assert verdicts(other, "success_stochastic") == verdicts(results)  # the score is chosen
 
 
+def test_explore_verdicts_are_chosen_on_these_data_while_the_chosen_bonus_is_used():
+    def scores(*v):
+        return {"success": {"per_seed": list(v)}}
+
+    results = {"pose": scores(0.9, 0.8, 1.0), "random": scores(0.0, 0.1, 0.0),
+               "raw": scores(0.1, 0.2, 0.3), "rec-sm": scores(0.5, 0.6, 0.7)}  # fmt: skip
+    chosen = verdicts(results, "success", "explore", RLConfig().ppo)
+    for v in chosen.values():
+        assert v["provenance"] == CHOSEN
+        assert "entropy bonus" in v["where"]
+        assert Verdict.from_dict(v).provenance == CHOSEN
+    assert chosen["pose_beats_random"]["holds"] is True  # the numbers are the same
+    other_bonus = {**RLConfig().ppo, "ent_coef": 0.0}
+    for task, ppo in (("corner", RLConfig().ppo), ("explore", other_bonus)):
+        assert all(
+            v["provenance"] == BEFORE for v in verdicts(results, "success", task, ppo).values()
+        )
+
+
 def tiny_config(**kw) -> RLConfig:
     base = {"task": "corner", "features": ("raw", "rec-s"), "seeds": 1, "steps": 128,
             "runs": str(RUNS), "eval_every": 64, "eval_episodes": 4, "n_envs": 2,
-            "transfer": ("square",), "ppo": TINY_PPO}  # fmt: skip
+            "transfer": ("square",), "ppo": TINY_PPO, "stats_steps": 64}  # fmt: skip
     return RLConfig(**{**base, **kw})
 
 
@@ -191,6 +227,12 @@ def test_a_grid_resumed_after_a_lost_agent_gives_the_same_bytes(tmp_path):
     assert set(rl["verdicts"]) == {"success", "success_stochastic"}
     assert (tmp_path / "rl.png").stat().st_size > 0
     assert (tmp_path / "raw__s0" / "policy.zip").is_file()
+    spread = rl["results"]["raw"]["spread"]  # sd per dimension before standardisation
+    assert len(spread["sd"]) == 5
+    assert spread["steps"] == 64
+    assert any(s > 0 for s in spread["sd"])  # (a ray may read the range all along)
+    agent = json.loads((tmp_path / "raw__s0" / "result.json").read_text())
+    assert agent["standardisation"]["sd"] == spread["sd_per_seed"][0]
     shutil.rmtree(tmp_path / "rec-s__s0")  # as if stopped while training it
     (tmp_path / "raw__s0" / "policy.zip").unlink()  # a finished agent is not trained again
     run_grid(config, tmp_path)
@@ -225,7 +267,8 @@ def test_a_registered_kind_is_a_feature_set_and_gets_a_colour(monkeypatch):
 
     monkeypatch.setitem(KINDS, "toy", Kind("toy", "Toy-encoder", "Toy", False, True))
     sets = feature_sets()
-    assert list(sets) == ["pose", "raw", "s", "sm", "rec-s", "rec-sm", "toy", "random"]
+    kinds = ["s", "sm", "rec-s", "rec-sm", "rec-sma", "toy"]
+    assert list(sets) == ["pose", "raw", *kinds, "random", "pose+raw"]
     assert (sets["toy"].kind, sets["toy"].trained, sets["toy"].size) == ("toy", True, None)
     assert (sets["pose"].size, sets["raw"].size, sets["random"].trained) == (4, 5, False)
     assert parse_features("toy,raw") == ["toy", "raw"]

@@ -25,10 +25,13 @@ from sensorimotor.rl import RUNS_ENV
 @app.command()
 @writes(folder="out")
 def rl(
-    task: Annotated[str, typer.Argument(help="corner, doorway or explore.")],
+    task: Annotated[str, typer.Argument(help="corner, doorway, explore or homing.")],
     world: Annotated[str, typer.Option(help="World the agents learn in.")] = "rooms1",
     features: Annotated[
-        str, typer.Option(help="Comma-separated: pose, raw, s, sm, rec-s, rec-sm, random.")
+        str,
+        typer.Option(
+            help="Comma-separated: pose, raw, s, sm, rec-s, rec-sm, rec-sma, random, pose+raw."
+        ),
     ] = "pose,raw,rec-sm,random",
     seeds: Annotated[
         int, typer.Option(min=1, max=MAX_SEEDS, help="Agents per feature set: seeds 0..N-1.")
@@ -41,7 +44,7 @@ def rl(
         Path | None,
         typer.Option(
             help="Folder of trained encoder runs ({world}__{kind}__s{seed}, as `reproduce` "
-            "writes in OUT/runs); needed by s, sm, rec-s, rec-sm, no default.",
+            "writes in OUT/runs); needed by s, sm, rec-s, rec-sm, rec-sma, no default.",
             envvar=RUNS_ENV,
         ),
     ] = None,
@@ -53,6 +56,14 @@ def rl(
     eval_episodes: Annotated[
         int, typer.Option(min=1, max=MAX_EPISODES, help="Episodes an evaluation.")
     ] = 50,
+    stats_steps: Annotated[
+        int,
+        typer.Option(
+            min=0,
+            max=MAX_AGENT_STEPS,
+            help="Steps of the rollout whose statistics standardise the features (0: none).",
+        ),
+    ] = 10_000,
     backend: BackendOpt = "local",
     address: AddressOpt = None,
     workers: Annotated[
@@ -76,7 +87,7 @@ def rl(
     worlds = tuple(w.strip() for w in transfer.split(",") if w.strip())
     config = RLConfig(task, world, tuple(names), seeds, steps,
                       None if runs is None else str(runs), trained_on,
-                      worlds, eval_every, eval_episodes)  # fmt: skip
+                      worlds, eval_every, eval_episodes, stats_steps=stats_steps)  # fmt: skip
     check_inputs(config)  # before the progress bar: an error is one line
     check_backend(backend, address, workers)
     if backend == "ray" or (workers or 1) > 1:  # agents as jobs: worker processes, Ray tasks
@@ -88,11 +99,15 @@ def rl(
                 )
 
             result = run_grid(config, out, run_agents=run_agents)
-        err_console.print("\n".join([*summary_lines(result), f"wrote {out}/rl.json, rl.png"]))
+        err_console.print(
+            "\n".join([*summary_lines(result), f"wrote {out}/rl.json, rl.png"]), markup=False
+        )
         return
     order = {(f, s): i for i, (f, s) in enumerate((f, s) for f in names for s in range(seeds))}
     with progress(f"rl {task}: environment steps", len(names) * seeds * steps) as update:
         result = run_grid(
             config, out, lambda f, s, n: update(order[f, s] * steps + n, f"{f} seed {s}")
         )
-    err_console.print("\n".join([*summary_lines(result), f"wrote {out}/rl.json, rl.png"]))
+    err_console.print(
+        "\n".join([*summary_lines(result), f"wrote {out}/rl.json, rl.png"]), markup=False
+    )

@@ -29,6 +29,10 @@ GRID = 10  # the world is cut into GRID x GRID cells (explore's reward, info["co
 CELL_REWARD = 0.1  # explore: reward per newly visited cell
 EXPLORE_SUCCESS = 0.4  # explore: success when at least this fraction of the cells is visited
 MAX_START_DRAWS = 1000  # start poses drawn before giving up on a world where the task is done
+EXCURSION_EXTRA = 20  # homing: steps the excursion goes on after first entering another room
+EXCURSION_CAP = 2_000  # homing: steps an excursion may take before its start is redrawn
+EXCURSION_CHUNK = 256  # homing: the excursion's walk is run this many steps at a time
+HOMING_BUDGET = 200  # homing: the agent's steps to come back (a straight line across Rooms1: ~50)
 
 
 @dataclass
@@ -78,6 +82,12 @@ class Task:
     """(N,) a quantity of the poses (N, 3) taken before each move, ``Episodes.before``."""
     check: Callable[[World], str | None] = _any_world
     """Why a world cannot hold the task (completes "task NAME ..."), None when it can."""
+    excursion: Callable[[LaserTaskEnv], dict | None] | None = None
+    """Run by ``reset`` after the start is drawn: drives the robot (not the agent) from there
+    and returns what it read, did and where (``{"readings" (E, R), "motors" (E, 2), "poses"
+    (E, 3)}``, row t: the reading at pose t and the command taken from it; the agent's first
+    observation is read where it ends), or None when it failed (the start is redrawn).
+    ``reset``'s ``info["excursion"]`` holds it, for a feature wrapper to feed a memory."""
 
     @property
     def env_id(self) -> str:
@@ -121,7 +131,7 @@ def get_task(task: str | Task) -> Task:
     return TASKS[task]
 
 
-# --- the three tasks ---------------------------------------------------------------------------
+# --- the tasks ---------------------------------------------------------------------------
 def corner_distances(corners: np.ndarray, poses: np.ndarray) -> np.ndarray:
     """(N,) distance from each pose (N, 3) to its nearest corner (C, 2)."""
     dx = corners[None, :, 0] - poses[:, 0, None]  # (N, C)
@@ -199,6 +209,58 @@ def _covered(env: LaserTaskEnv, e: Episodes) -> np.ndarray:
     return e.visited.mean(axis=(1, 2)) >= EXPLORE_SUCCESS
 
 
+def _in_start_room(env: LaserTaskEnv, e: Episodes) -> np.ndarray:
+    x, y = e.poses[:, 0], e.poses[:, 1]
+    done = np.zeros(len(e.poses), dtype=bool)
+    for k in np.unique(e.start_room[e.start_room >= 0]):
+        mine = np.flatnonzero(e.start_room == k)
+        done[mine] = point_in_polygon(env.world.rooms[k].polygon, x[mine], y[mine])
+    return done
+
+
+def drive_out(env: LaserTaskEnv) -> dict | None:
+    """Homing's excursion: the paper's random behaviour drives the robot from its start until
+    it has been in a named room other than the start room for ``EXCURSION_EXTRA`` steps
+    (counted from its first entry; it ends at the first step after that at which it is in
+    such a room); None when the start is in no room or the robot is not there within
+    ``EXCURSION_CAP`` steps. The walk is the simulator's own (``sim.core``'s paper behaviour,
+    noiseless; it never meets a wall, so the agent's physics would move it alike), run in
+    chunks of ``EXCURSION_CHUNK`` steps on uniforms from ``env.np_random`` (two a step, as
+    ``laser_world.paper_policy`` draws them) and cut where the rule ends it."""
+    start = env._room()
+    if start < 0:
+        return None
+    if env._walk is None:
+        grid = sim.for_rays(env.world.grid, len(env.segments), len(env.angles))
+        env._walk = grid.arrays()
+    paper_rays = tuple(env.angles) == tuple(sim.DEFAULT_LAYOUT.angles)
+    x, y, heading = env.pose
+    parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+    entered, done = None, 0  # the step it first stood in another room; steps walked
+    none = np.zeros((0, len(env.angles))), np.zeros((0, len(env.angles)), bool)
+    while done < EXCURSION_CAP:
+        n = min(EXCURSION_CHUNK, EXCURSION_CAP - done)
+        readings, motors, poses = np.empty((n, len(env.angles))), np.empty((n, 2)), np.empty((n, 3))
+        x, y, heading, _ = sim._rollout(
+            env.segments, *env._walk, env.angles, env.max_range, paper_rays, x, y, heading,
+            env.np_random.random((n, 2)), none[0], False, none[1], np.zeros((0, 2)),
+            readings, motors, poses, sim.PAPER, 0.0,
+        )  # fmt: skip
+        parts.append((readings, motors, poses))
+        rooms = env.world.room_index(poses[:, 0], poses[:, 1])  # (n,)
+        away = np.flatnonzero((rooms >= 0) & (rooms != start)) + done  # steps in another room
+        if entered is None and away.size:
+            entered = int(away[0])
+        late = away[away >= entered + EXCURSION_EXTRA] if entered is not None else away[:0]
+        done += n
+        if late.size:  # the agent starts at step ``end``: the excursion is the steps before
+            end = int(late[0])
+            r, m, q = (np.concatenate([part[k] for part in parts]) for k in range(3))
+            env.pose = tuple(float(v) for v in q[end])
+            return {"readings": r[:end].astype(np.float32), "motors": m[:end], "poses": q[:end]}
+    return None
+
+
 CORNER = register(
     Task("corner", 200, _corner_progress, _corner_done, good_start=_not_at_corner,
          measure=_corner_distance)
@@ -207,6 +269,10 @@ DOORWAY = register(
     Task("doorway", 300, _no_reward, _in_another_room, good_start=_in_a_room, check=_two_rooms)
 )
 EXPLORE = register(Task("explore", 400, _new_cells, _covered, success_reward=0.0, terminates=False))
+HOMING = register(
+    Task("homing", HOMING_BUDGET, _no_reward, _in_start_room, good_start=_in_a_room,
+         check=_two_rooms, excursion=drive_out)
+)  # fmt: skip
 
 
 class LaserTaskEnv(LaserWorldEnv):
@@ -225,6 +291,12 @@ class LaserTaskEnv(LaserWorldEnv):
       Needs a world that names at least two rooms (``rooms1``, ``rooms2`` do; ``square`` names
       one).
     - ``explore``: visit as many cells as possible of a 10 x 10 grid laid over the world.
+    - ``homing``: start in a named room, be driven out of it by the paper's random behaviour
+      (the excursion, ``drive_out``: until the robot has been in another named room for 20
+      steps; the agent does not act, its features see the readings), then come back to the
+      start room within 200 steps. Needs two named rooms. The start room is drawn anew each
+      episode and is nowhere in the agent's observation: only a memory of the excursion (or
+      of the start) tells it.
 
     ``register(Task(...))`` adds another, with its own Gymnasium id (``Task.env_id``).
 
@@ -256,20 +328,25 @@ class LaserTaskEnv(LaserWorldEnv):
     - ``doorway``: ``+1`` on entering another room, 0 otherwise.
     - ``explore``: ``+0.1`` for each grid cell entered for the first time (the start cell counts
       as visited).
+    - ``homing``: ``+1`` on entering the start room, 0 otherwise.
 
     ## Starting State
 
     A pose drawn as in ``LaserWorld-v0`` (``sim.sample_start``), redrawn while the task's
     ``good_start`` refuses it: ``corner`` while the task is already done there, ``doorway``
     while it lies in no named room, ``explore`` never. ``reset(options={"pose": ...})`` starts
-    at a given pose instead.
+    at a given pose instead. ``homing`` then runs its excursion (``Task.excursion``): the
+    episode's first observation is read where the excursion ends, ``info["excursion"]`` holds
+    its readings, commands and poses, and an excursion that does not leave the room within
+    2,000 steps redraws the start.
 
     ## Episode End
 
-    1. Termination: on success for a task that ``terminates`` (``corner``, ``doorway``);
-       ``explore`` never.
-    2. Truncation: after the task's step ``budget`` (corner 200, doorway 300, explore 400
-       steps), by the ``TimeLimit`` wrapper that ``gymnasium.make`` adds.
+    1. Termination: on success for a task that ``terminates`` (``corner``, ``doorway``,
+       ``homing``); ``explore`` never.
+    2. Truncation: after the task's step ``budget`` (corner 200, doorway 300, explore 400,
+       homing 200 steps after the excursion), by the ``TimeLimit`` wrapper that
+       ``gymnasium.make`` adds.
 
     ``info["is_success"]`` is in every ``info`` and says whether the task is done so far: a
     corner or another room reached; for ``explore``, at least 40 % of the cells visited (the
@@ -320,6 +397,8 @@ class LaserTaskEnv(LaserWorldEnv):
         self.visited = np.zeros((GRID, GRID), dtype=bool)  # cells entered this episode
         self.start_room = -1  # index in world.rooms where the episode started
         self.done = False  # the task is done (success so far)
+        self.excursion: dict | None = None  # the task's excursion of this episode, if any
+        self._walk = None  # the walls' grid arrays of the excursion's walk, made when needed
 
     def _task_info(self, info: dict[str, Any]) -> dict[str, Any]:
         info["is_success"] = self.done
@@ -343,21 +422,39 @@ class LaserTaskEnv(LaserWorldEnv):
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         observation, info = super().reset(seed=seed, options=options)  # seeds, draws a pose
-        if (options or {}).get("pose") is None and not self.task.good_start(self):
-            for _ in range(MAX_START_DRAWS):
-                self.pose = sim.sample_start(self.world, self.np_random)
-                if self.task.good_start(self):
-                    break
-            else:
-                raise InputError(
-                    f"world {self.world.name!r}: no start pose for task {self.task.name}"
-                )
+        given = (options or {}).get("pose") is not None
+        if not given and not self.task.good_start(self):
+            self._draw_start()
             observation, info = self._observe(), self._info(False)
         self.start_room = self._room()
+        self.excursion = None
+        if self.task.excursion is not None:
+            for _ in range(MAX_START_DRAWS):
+                self.excursion = self.task.excursion(self)
+                if self.excursion is not None or given:
+                    break
+                self._draw_start()
+                self.start_room = self._room()
+            if self.excursion is None:
+                where = "the given pose" if given else f"world {self.world.name!r}"
+                raise InputError(
+                    f"task {self.task.name}: no excursion out of the start room from {where}"
+                )
+            observation, info = self._observe(), self._info(False)
+            info["excursion"] = self.excursion
         self.visited[:] = False
         self.visited[grid_cells(self.world, np.array([self.pose]))] = True
         self.done = False
         return observation, self._task_info(info)
+
+    def _draw_start(self) -> None:
+        """Draw start poses until the task's ``good_start`` takes one (InputError after
+        ``MAX_START_DRAWS``)."""
+        for _ in range(MAX_START_DRAWS):
+            self.pose = sim.sample_start(self.world, self.np_random)
+            if self.task.good_start(self):
+                return
+        raise InputError(f"world {self.world.name!r}: no start pose for task {self.task.name}")
 
     def _room(self) -> int:
         """Index in ``world.rooms`` of the room holding the agent, -1 for none."""

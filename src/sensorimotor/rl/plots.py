@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from sensorimotor.learn.models import REC_S, REC_SM, SM, S
+from sensorimotor.learn.models import REC_S, REC_SM, REC_SMA, SM, S
 from sensorimotor.sim.plots import save_figure
 
 COLORS = {
@@ -18,9 +18,11 @@ COLORS = {
     SM: "tab:orange",
     REC_S: "tab:green",
     REC_SM: "tab:red",
+    REC_SMA: "tab:brown",
     "random": "tab:purple",
+    "pose+raw": "darkgoldenrod",
 }
-SPARE = ("tab:brown", "tab:pink", "tab:olive", "tab:cyan")  # a feature set without a colour
+SPARE = ("tab:pink", "tab:olive", "tab:cyan", "gold")  # a feature set without a colour
 
 
 def colors(names) -> dict[str, str]:

@@ -8,6 +8,10 @@ over seeds, ``results.summary``) and ``rl.png`` (the learning curves). An agent 
 ``result.json`` exists is not trained again: run the same command after a stop to go on (an
 agent stopped half-way starts again from its beginning; it gives the same numbers).
 
+Features: every agent sees its feature set standardised by the statistics of a rollout taken
+before it trains (``rl.standardise``, ``standardisation_for``), frozen for its training,
+evaluation and transfer; ``result.json`` keeps them, ``rl.json`` the per-dimension spread.
+
 Evaluation: every ``eval_every`` steps, at the start and at the end, the deterministic policy
 plays ``eval_episodes`` episodes on separate environments whose starts are the same for every
 agent (seeded by ``EVAL_SEED``): a paired comparison across feature sets and time.
@@ -41,6 +45,8 @@ from sensorimotor.rl.features import (
     no_runs_error,
 )
 from sensorimotor.rl.results import HEADLINE, summary, verdicts
+from sensorimotor.rl.standardise import STATS_SEED, STATS_STEPS, Standardisation
+from sensorimotor.rl.standardise import fit as fit_standardisation
 from sensorimotor.rl.vec_env import TaskVecEnv
 from sensorimotor.sim.world import load_world
 from sensorimotor.version import __version__
@@ -53,7 +59,7 @@ class RLConfig:
     """One experiment: a task in a world, PPO's settings, how it is evaluated."""
 
     task: str = "corner"
-    """A task of ``envs.tasks.TASKS`` (corner, doorway, explore)."""
+    """A task of ``envs.tasks.TASKS`` (corner, doorway, explore, homing)."""
     world: str = "rooms1"
     """The world the agents learn in."""
     features: tuple[str, ...] = ("pose", "raw", REC_SM, "random")
@@ -75,6 +81,9 @@ class RLConfig:
     """Episodes per evaluation (deterministic policy)."""
     n_envs: int = 8
     """Parallel environments PPO collects from."""
+    stats_steps: int = STATS_STEPS
+    """Steps of the rollout whose statistics standardise every feature set
+    (``rl.standardise``); 0: the features as computed (the grids before issue 36)."""
     ppo: dict = field(
         default_factory=lambda: {
             "n_steps": 512,
@@ -98,6 +107,8 @@ class RLConfig:
         for name in ("seeds", "steps", "eval_every", "eval_episodes", "n_envs"):
             if getattr(self, name) < 1:
                 raise InputError(f"--{name.replace('_', '-')} must be at least 1")
+        if self.stats_steps < 0:
+            raise InputError("--stats-steps must be at least 0")
         object.__setattr__(self, "features", tuple(self.features))
         object.__setattr__(self, "transfer", tuple(self.transfer))
         object.__setattr__(self, "trained_on", self.trained_on or self.world)
@@ -110,12 +121,19 @@ class RLConfig:
 
 
 def make_env(
-    config: RLConfig, world: str, features: str, encoder, n: int, seed: int, batched: bool = True
+    config: RLConfig,
+    world: str,
+    features: str,
+    encoder,
+    n: int,
+    seed: int,
+    batched: bool = True,
+    standardisation: Standardisation | None = None,
 ):
-    """``n`` task environments in ``world`` behind ``FeatureVecEnv`` (seeded ``seed + i``):
-    stepped together (``vec_env.TaskVecEnv``: one simulator call a step), or with
-    ``batched=False`` one by one (``DummyVecEnv`` over ``gym.make``; the same numbers,
-    slower: ``benchmarks/bench_rl.py``)."""
+    """``n`` task environments in ``world`` behind ``FeatureVecEnv`` (seeded ``seed + i``;
+    its observations standardised by ``standardisation`` where given): stepped together
+    (``vec_env.TaskVecEnv``: one simulator call a step), or with ``batched=False`` one by one
+    (``DummyVecEnv`` over ``gym.make``; the same numbers, slower: ``benchmarks/bench_rl.py``)."""
     load_world(world)  # a bad world name: InputError before any environment is made
     if batched:
         venv = TaskVecEnv(config.task, world, n)
@@ -125,7 +143,19 @@ def make_env(
             TASKS[config.task].env_id, n_envs=n, seed=seed, env_kwargs={"world": world},
             vec_env_cls=DummyVecEnv,
         )  # fmt: skip
-    return FeatureVecEnv(venv, features, encoder)
+    return FeatureVecEnv(venv, features, encoder, standardisation)
+
+
+def standardisation_for(
+    config: RLConfig, features: str, encoder, seed: int
+) -> Standardisation | None:
+    """The frozen statistics agent ``seed`` of ``features`` sees its features through: a
+    rollout of ``config.stats_steps`` steps in the task's world (``rl.standardise``); None
+    when ``stats_steps`` is 0."""
+    if not config.stats_steps:
+        return None
+    venv = make_env(config, config.world, features, encoder, config.n_envs, STATS_SEED + seed)
+    return fit_standardisation(venv, config.stats_steps, seed)
 
 
 def evaluate(model: PPO, venv: FeatureVecEnv, episodes: int, deterministic: bool = True) -> dict:
@@ -201,9 +231,12 @@ def train_agent(
     torch.set_num_threads(1)  # one core per agent; also makes the numbers reproducible
     start = time.perf_counter()
     encoder, encoder_run = load_encoder(features, _runs(config), config.trained_on, seed)
-    venv = make_env(config, config.world, features, encoder, config.n_envs, seed)
+    scaled = standardisation_for(config, features, encoder, seed)
+    venv = make_env(config, config.world, features, encoder, config.n_envs, seed, True, scaled)
     eval_envs = min(10, config.eval_episodes)
-    eval_venv = make_env(config, config.world, features, encoder, eval_envs, EVAL_SEED)
+    eval_venv = make_env(
+        config, config.world, features, encoder, eval_envs, EVAL_SEED, True, scaled
+    )
     if folder.exists():
         shutil.rmtree(folder)  # what a stopped attempt left
     folder.mkdir(parents=True)
@@ -214,7 +247,7 @@ def train_agent(
     curve.record()  # the final score (PPO learns whole rollouts: steps rounded up to one)
     transfer = {}
     for world in config.transfer:
-        tvenv = make_env(config, world, features, encoder, eval_envs, EVAL_SEED)
+        tvenv = make_env(config, world, features, encoder, eval_envs, EVAL_SEED, True, scaled)
         transfer[world] = evaluate_both(model, tvenv, config.eval_episodes)
     with atomic_path(folder / "policy.zip", ".zip") as tmp:
         model.save(tmp)
@@ -223,6 +256,7 @@ def train_agent(
         "features": features,
         "seed": seed,
         "encoder_run": encoder_run,
+        "standardisation": None if scaled is None else scaled.to_dict(),
         "config": config.agent_config(),
         "version": __version__,
         "curve": c,
@@ -351,6 +385,23 @@ def run_grid(
     return rl
 
 
+def spread(agents: list[dict]) -> dict | None:
+    """The per-dimension spread of a feature set before standardisation: each agent's rollout
+    sd (``sd_per_seed``, seeds x F) and their mean over seeds (``sd``), the same for the
+    means; None when the agents were not standardised."""
+    stats = [r.get("standardisation") for r in agents]
+    if any(s is None for s in stats):
+        return None
+    sd = np.array([s["sd"] for s in stats])  # (seeds, F)
+    mean = np.array([s["mean"] for s in stats])
+    return {
+        "sd": [float(x) for x in sd.mean(0)],
+        "mean": [float(x) for x in mean.mean(0)],
+        "sd_per_seed": sd.tolist(),
+        "steps": stats[0]["steps"],
+    }
+
+
 def aggregate(config: RLConfig, agents: dict[str, list[dict]]) -> dict:
     """``rl.json``: per feature set, the final success and return over seeds (``summary``), the
     learning curve (mean and CI at each evaluation) and the transfer scores."""
@@ -370,6 +421,7 @@ def aggregate(config: RLConfig, agents: dict[str, list[dict]]) -> dict:
                 for w in config.transfer
             },
             "encoder_runs": [r["encoder_run"] for r in rs],
+            "spread": spread(rs),
         }
     return {
         "task": config.task,
@@ -383,5 +435,8 @@ def aggregate(config: RLConfig, agents: dict[str, list[dict]]) -> dict:
         "version": __version__,
         "headline": HEADLINE,
         "results": results,
-        "verdicts": {k: verdicts(results, k) for k in ("success", "success_stochastic")},
+        "verdicts": {
+            k: verdicts(results, k, config.task, config.ppo)
+            for k in ("success", "success_stochastic")
+        },
     }

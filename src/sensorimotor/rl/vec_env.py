@@ -67,7 +67,10 @@ class TaskVecEnv(VecEnv):
         self.done[i] = False
         self.steps[i] = 0
         self.returns[i] = 0.0
-        return observation, self._info(i, False)
+        info = self._info(i, False)
+        if env.excursion is not None:  # the task drove the robot before the agent's first step
+            info["excursion"] = env.excursion
+        return observation, info
 
     def _info(self, i: int, collision: bool) -> dict:
         return {
