@@ -27,7 +27,8 @@ def test_the_switch_pins_torch_numba_and_mkl_to_avx2_and_is_off_by_default():
     on = json.loads(_run(PROBE, SENSORIMOTOR_PORTABLE="1").stdout)
     assert on == {"aten": "AVX2", "numba": "haswell", "mkl": "AVX2"}
     off = json.loads(_run(PROBE).stdout)
-    assert off["numba"] is None and off["mkl"] is None
+    assert off["numba"] is None
+    assert off["mkl"] is None
 
 
 def test_the_switch_after_torch_loaded_warns_that_it_comes_too_late():
