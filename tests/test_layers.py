@@ -30,7 +30,7 @@ LAYERS = {
     "pipeline": BASE | {"sim", "learn", "analysis", "jobs"},
     "report": BASE | {"sim", "learn", "analysis", "pipeline"},  # never an experiment
     "envs": {"errors", "sim"},
-    "rl": BASE | {"sim", "learn", "envs"},
+    "rl": BASE | {"sim", "learn", "envs", "jobs"},  # jobs: an agent's progress to its parent
     "experiments": BASE | {"sim", "learn", "analysis", "jobs", "pipeline", "report", "rl"},
     "reproduce": BASE | {"learn", "jobs", "pipeline", "report", "experiments"},
     "cli": BASE

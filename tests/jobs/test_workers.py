@@ -86,3 +86,17 @@ def test_a_worker_holds_every_native_pool_to_its_threads():
     for threads in results.values():
         assert len(threads) > 2  # torch and at least a BLAS and an OpenMP were seen
         assert set(threads) == {1}
+
+
+def test_a_progress_sender_sends_at_most_every_interval_and_always_the_last(monkeypatch):
+    from sensorimotor.jobs import workers
+
+    sent = []
+    monkeypatch.setattr(workers, "send_progress", lambda name, msg: sent.append((name, msg)))
+    clock = [0.0, 1.0, 2.0, 11.0, 12.0]
+    monkeypatch.setattr(workers.time, "monotonic", lambda: clock.pop(0) if clock else 99.0)
+    send = workers.progress_sender("job", every=10.0)
+    for i in range(4):
+        send(f"step {i}")
+    send("done", last=True)
+    assert sent == [("job", "step 0"), ("job", "step 3"), ("job", "done")]

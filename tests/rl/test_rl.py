@@ -317,14 +317,17 @@ def test_agents_trained_as_jobs_of_worker_processes_are_those_trained_here(tmp_p
     config = tiny_config(features=("raw", "random"), transfer=())
     run_grid(config, tmp_path / "here")
     with job_runner("local", workers=2) as (run_jobs, n):
-        jobs = []
+        jobs, lines = [], []
 
         def run_agents(todo):
             jobs.extend(name for name, _, _ in todo)
-            return run_all(run_jobs, n, todo)
+            return run_all(run_jobs, n, todo, lambda name, msg: lines.append((name, msg)))
 
         run_grid(config, tmp_path / "jobs", run_agents=run_agents)
     assert sorted(jobs) == ["random__s0", "raw__s0"]
+    # each agent tells its parent how far it is, its last line always (a log sees it move)
+    last = f"{config.steps:,} of {config.steps:,} steps"
+    assert {("raw__s0", last), ("random__s0", last)} <= set(lines)
     assert (tmp_path / "jobs" / "rl.json").read_bytes() == (
         tmp_path / "here" / "rl.json"
     ).read_bytes()

@@ -14,6 +14,7 @@ import platform
 import queue as queue_mod
 import signal
 import threading
+import time
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
@@ -67,6 +68,23 @@ def send_progress(name: str, message: str) -> None:
     """Send a progress line from inside a job to the parent (printed there), or drop it."""
     if _progress_queue is not None:
         _progress_queue.put((name, message))
+
+
+PROGRESS_EVERY = 10.0  # seconds: the most often a job's ``progress_sender`` sends a line
+
+
+def progress_sender(name: str, every: float = PROGRESS_EVERY) -> Callable[[str, bool], None]:
+    """``send(message, last=False)``: ``send_progress`` of job ``name`` at most every ``every``
+    seconds (and always when ``last``), so a long job shows in its parent's log."""
+    sent = [-float("inf")]
+
+    def send(message: str, last: bool = False) -> None:
+        now = time.monotonic()
+        if last or now - sent[0] >= every:
+            send_progress(name, message)
+            sent[0] = now
+
+    return send
 
 
 def _die_with_parent() -> None:

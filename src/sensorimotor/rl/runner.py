@@ -36,6 +36,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv
 from sensorimotor.envs.tasks import TASKS, LaserTaskEnv
 from sensorimotor.errors import InputError
 from sensorimotor.files import atomic_path, read_json, write_text_atomic
+from sensorimotor.jobs.workers import progress_sender
 from sensorimotor.learn.models import REC_SM
 from sensorimotor.rl.features import (
     FeatureVecEnv,
@@ -336,7 +337,13 @@ def agent_job(
     this process or as a job of a job runner (worker processes, Ray tasks: a top-level
     function, so that it pickles). ``report(steps_done)`` follows its training."""
     path = Path(folder) / "result.json"
-    result = train_agent(config, features, seed, path.parent, report or (lambda n: None))
+    if report is None:  # a job of a runner: a line to its parent's log now and then
+        send = progress_sender(path.parent.name)
+
+        def report(n: int) -> None:
+            send(f"{n:,} of {config.steps:,} steps", last=n >= config.steps)
+
+    result = train_agent(config, features, seed, path.parent, report)
     write_text_atomic(path, json.dumps(result, indent=2, allow_nan=False))
     return result
 
