@@ -52,14 +52,16 @@ PAIRS = {
     "smoke": 10,
     "quick": 100,
 }  # planning start/goal pairs by scale; otherwise planning.N_PAIRS
-STAGE_VERSION = 3  # bump when the map's numbers change for the same inputs (3: baselines)
+STAGE_VERSION = 4  # bump when the map's numbers change for the same inputs (4: ceilings, rnn)
 
-# (key in the aggregate, path in map.json, row label in the report, format)
+CEIL = "ceiling.localisation."
+# (key in the aggregate, path in map.json (None: a ratio of OF_CEILING), row label, format)
 METRICS = (
     ("bits.unigram", "bits_per_step.unigram", "bits/step: unigram", ".3f"),
     ("bits.markov", "bits_per_step.markov", "bits/step: Markov (cell, action)", ".3f"),
     ("bits.markov2", "baselines.bits_per_step.markov2", "bits/step: 2nd-order Markov", ".3f"),
     ("bits.markov3", "baselines.bits_per_step.markov3", "bits/step: 3rd-order Markov", ".3f"),
+    ("bits.rnn", "baselines.bits_per_step.rnn", "bits/step: GRU on (cell, action)", ".3f"),
     ("bits.cell_graph", "bits_per_step.cell_graph", "bits/step: cell graph", ".3f"),
     ("bits.map_em", "bits_per_step.map_em", "bits/step: map after EM (unsplit)", ".3f"),
     ("bits.map", "bits_per_step.map", "bits/step: map", ".3f"),
@@ -70,15 +72,26 @@ METRICS = (
     ("broom.cells", "localisation.balanced_room_accuracy.cells", "balanced: cells", ".3f"),
     ("broom.chance", "localisation.balanced_room_accuracy.chance", "balanced: chance", ".3f"),
     ("broom.readout", "baselines.localisation.history_readout", "balanced: read-out", ".3f"),
+    ("broom.ceiling", CEIL + "balanced_room_accuracy", "balanced: MCL ceiling", ".3f"),
+    ("broom.blind", CEIL + "no_odometry.balanced_room_accuracy", "balanced: MCL, no odo.", ".3f"),
+    ("broom.of_ceiling", None, "balanced: map, of the ceiling", ".2f"),
     ("pos.map", "localisation.position_error.map", "position error: map", ".2f"),
     ("pos.cells", "localisation.position_error.cells", "position error: cells", ".2f"),
     ("pos.chance", "localisation.position_error.chance", "position error: chance", ".2f"),
+    ("pos.ceiling", CEIL + "position_error", "position error: MCL ceiling", ".2f"),
     ("ari.map", "rooms.adjusted_rand", "adjusted Rand: map communities", ".3f"),
     ("ari.cells", "rooms.adjusted_rand_cells", "adjusted Rand: cell communities", ".3f"),
     ("plan.map", "planning.success.map", "planning success: map", ".2f"),
     ("plan.random", "planning.success.random", "planning success: random", ".2f"),
+    ("plan.ceiling", "ceiling.planning.success", "planning success: true-pose ceiling", ".2f"),
+    ("plan.of_ceiling", None, "planning success: map, of the ceiling", ".2f"),
     ("states", "states.active", "active states", ".0f"),
 )
+# the map's number as a share of its ceiling (each seed's ratio, then the mean over seeds)
+OF_CEILING = {
+    "broom.of_ceiling": ("broom.map", "broom.ceiling"),
+    "plan.of_ceiling": ("plan.map", "plan.ceiling"),
+}
 # claim -> (what, better, worse, minimum effect): holds if mean(better - worse) > margin, and
 # > 2 standard errors over seeds with two seeds or more
 CLAIMS = {
@@ -160,6 +173,11 @@ def _get(metrics: dict, path: str):
     return metrics
 
 
+def _ratio(a, b):
+    """a / b, None where either is missing or b is 0."""
+    return None if a is None or not b else a / b
+
+
 def _stats(values: list) -> dict:
     """mean, sd, n (``stats.describe``: sd 0.0 for one value) and the values; mean and sd None
     if any is None."""
@@ -223,7 +241,9 @@ def aggregate(per_map: list[tuple[str, str, int, dict]]) -> dict:
         out[world] = {}
         for model in [m for m in with_raw() if m in models] + [m for m in models if m not in with_raw()]:
             maps = sorted(models[model], key=lambda sm: sm[0])
-            values = {key: [_get(m, path) for _, m in maps] for key, path, _, _ in METRICS}
+            values = {k: [_get(m, path) for _, m in maps] for k, path, _, _ in METRICS if path}
+            for key, (num, den) in OF_CEILING.items():
+                values[key] = [_ratio(a, b) for a, b in zip(values[num], values[den], strict=True)]
             pairs = [_get(m, "planning.pairs") for _, m in maps]
             out[world][model] = {
                 "seeds": [s for s, _ in maps],

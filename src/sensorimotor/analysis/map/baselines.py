@@ -28,7 +28,8 @@ RNN_EMBED = 16  # the (cell, action) pair's embedding
 RNN_HIDDEN = 64  # GRU units
 RNN_LENGTH = 100  # steps per training window, and the context before each test block
 RNN_BATCH = 32
-RNN_UPDATES = 1_500  # Adam steps (about a minute on one CPU thread)
+RNN_UPDATES = 1_500  # Adam steps at most (about a minute on one CPU thread) ...
+RNN_PASSES = 10  # ... and at most this many passes over the training split's steps
 RNN_LR = 3e-3
 RNN_CHECKS = 5  # validation checks over training: the best weights are kept
 RNN_VAL_STEPS = 20_000  # at most this many validation steps per check
@@ -112,15 +113,17 @@ def _rnn_eval(net, steps, k: int, limit: int | None = None) -> float:
     return nats / len(tokens) / math.log(2)
 
 
-def rnn_bits(train, val, test, clusters: int, seed: int = 0, updates: int = RNN_UPDATES) -> float:
+def rnn_bits(train, val, test, clusters: int, seed: int = 0, updates: int | None = None) -> float:
     """Bits per step on the test split of a GRU over (cell, action) pairs predicting the next
-    cell (module docstring): Adam on random windows of the training split, one thread, seeded;
-    the weights of the validation check with the fewest bits are scored."""
+    cell (module docstring): Adam on random windows of the training split (``updates`` steps:
+    by default RNN_UPDATES, fewer for a short split), one thread, seeded; the weights of the validation check with the fewest bits are scored."""
     import torch
 
     from sensorimotor.analysis.map.cells import N_ACTIONS
 
     tokens, targets = _tokens(train, clusters)
+    if updates is None:
+        updates = min(RNN_UPDATES, math.ceil(RNN_PASSES * len(tokens) / (RNN_BATCH * RNN_LENGTH)))
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
     try:
@@ -133,7 +136,8 @@ def rnn_bits(train, val, test, clusters: int, seed: int = 0, updates: int = RNN_
             best, best_state = math.inf, None
             checks = {round(updates * (i + 1) / RNN_CHECKS) for i in range(RNN_CHECKS)}
             for step in range(1, updates + 1):
-                at = rng.integers(0, len(tokens) - length + 1, RNN_BATCH)[:, None] + np.arange(length)
+                at = rng.integers(0, len(tokens) - length + 1, RNN_BATCH)[:, None]
+                at = at + np.arange(length)
                 logits = net(torch.from_numpy(tokens[at]))
                 loss = torch.nn.functional.cross_entropy(
                     logits.reshape(-1, clusters), torch.from_numpy(targets[at]).reshape(-1)
