@@ -28,7 +28,7 @@ from sensorimotor.analysis.map.chmm import (
     fit_chmm,
     log_likelihood,
 )
-from sensorimotor.analysis.map.context import decayed_history, slow_context
+from sensorimotor.analysis.map.context import N_CONTEXTS, decayed_history, slow_context
 from sensorimotor.analysis.map.mapping import (
     Steps,
     cell_steps,
@@ -288,8 +288,11 @@ def test_cli_map_writes_strict_json_graphml_and_figures(cli, rooms1_db_path, tmp
     assert m["planning"]["pairs"] == 2
     for rate in m["planning"]["success"].values():
         assert rate in (0.0, 0.5, 1.0)
-    assert m["settings"]["contexts"] == 4  # the default: each clone split by 4 contexts
-    assert 1 <= m["states"]["active"] <= 6 * 3 * 4
+    assert m["settings"]["contexts"] == N_CONTEXTS == 2  # the default, chosen on validation
+    from sensorimotor.cli import app
+
+    assert app.N_CONTEXTS == N_CONTEXTS
+    assert 1 <= m["states"]["active"] <= 6 * 3 * N_CONTEXTS
     import networkx as nx
 
     graph = nx.read_graphml(out / "map.graphml")

@@ -204,9 +204,10 @@ PROVENANCE = {
     "predicts": (BEFORE, "the map's settings (20 cells x 20 clones, EM, Viterbi) from issue 22"),
     "localises": (
         CHOSEN,
-        "the split's 4 contexts chosen on the test split of Rec-SM seeds 0-1 "
-        "(docs/results/map/diagnosis/split.py); redone on the validation split of raw seed 0, "
-        "Rooms1, 200,000 training steps (diagnosis/select_contexts.py), which picks N = {n}",
+        "the context split and its 400-step history designed on the test split of Rec-SM "
+        "seeds 0-1 (docs/results/map/diagnosis/split.py); its number of contexts, 4 there, "
+        "chosen again on the validation split (raw and Rec-SM seed 0, Rooms1, 200,000 training "
+        "steps, docs/results/map/diagnosis/select_contexts.py): 2",
     ),
     "plans": (
         CHOSEN,
