@@ -289,9 +289,9 @@ def test_cli_map_writes_strict_json_graphml_and_figures(cli, rooms1_db_path, tmp
     for rate in m["planning"]["success"].values():
         assert rate in (0.0, 0.5, 1.0)
     assert m["settings"]["contexts"] == N_CONTEXTS == 2  # the default, chosen on validation
-    from sensorimotor.cli import app
+    from sensorimotor.cli.app import N_CONTEXTS as CLI_DEFAULT
 
-    assert app.N_CONTEXTS == N_CONTEXTS
+    assert CLI_DEFAULT == N_CONTEXTS
     assert 1 <= m["states"]["active"] <= 6 * 3 * N_CONTEXTS
     import networkx as nx
 
