@@ -364,13 +364,13 @@ def true_pose_planning(
     }
 
 
-_DONE: dict = {}  # (database file, its length, seed, pairs) -> ceilings, in this process
+_DONE: dict = {}  # (database file, its time, seed, pairs) -> ceilings, in this process
 
 
 def ceilings(db, world: World, seed: int, pairs: int) -> dict:
     """The ceilings of a database with known walls: MCL on its test split with and without
     odometry, and the true-pose planner on ``pairs`` start/goal pairs (None with 0 pairs)."""
-    key = None if db.path is None else (str(db.path), len(db), seed, pairs)
+    key = None if db.path is None else (str(db.path), db.path.stat().st_mtime_ns, seed, pairs)
     if key is not None and key not in _DONE:
         _DONE[key] = _ceilings(db, world, seed, pairs)
     return copy.deepcopy(_DONE[key]) if key is not None else _ceilings(db, world, seed, pairs)
