@@ -14,9 +14,9 @@
   Scored as the map's localisation is, on the test split, but cut into windows of ``WINDOW``
   steps that each start from the prior again (so the accuracy against steps since the start is
   an average over windows; the restarts only make the ceiling harder), at most ``MCL_WINDOWS``
-  of them evenly spread over the split (1,000 particles filter about 500 steps a second on
-  one core: the 100,000-step test split of a 1,000,000-step database would take 200 s a run,
-  twice per map): balanced room accuracy of the weighted vote of the particles' rooms, and the
+  of them evenly spread over the split (2,000 particles filter about 500 steps a second on
+  one idle core: the 100,000-step test split of a 1,000,000-step database would take 200 s a
+  run, twice per map): balanced room accuracy of the weighted vote of the particles' rooms, and the
   error of their weighted mean position. The ceilings depend on the database and the seed
   only, so one process computes them once for all the maps of a database and seed.
 - **Planning**: the true pose on the true walls. Shortest paths to the goal on a
@@ -54,7 +54,7 @@ from sensorimotor.sim.core import (
 )
 from sensorimotor.sim.world import World, point_segment_distance
 
-N_PARTICLES = 1_000
+N_PARTICLES = 2_000  # 1,000 left one window of Rooms2 in a wrong room for 5,000 steps (0.882)
 SIGMA_FLOOR = 0.3  # units: the reading model's sd where the database's noise is smaller
 JITTER = (0.05, 0.02)  # roughening with odometry: sd of x and y (units), of the heading (rad)
 WALK = (0.5, 0.5)  # the random walk without odometry: sd of x and y, of the heading (rad)
