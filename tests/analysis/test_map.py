@@ -28,7 +28,7 @@ from sensorimotor.analysis.map.chmm import (
     fit_chmm,
     log_likelihood,
 )
-from sensorimotor.analysis.map.context import decayed_history, slow_context
+from sensorimotor.analysis.map.context import N_CONTEXTS, decayed_history, slow_context
 from sensorimotor.analysis.map.mapping import (
     Steps,
     cell_steps,
@@ -270,7 +270,13 @@ def test_cli_map_writes_strict_json_graphml_and_figures(cli, rooms1_db_path, tmp
     assert b["markov"] < b["unigram"]
     assert b["map"] < b["unigram"]
     higher = m["baselines"]["bits_per_step"]
-    assert set(higher) == {"markov2", "markov3"}
+    assert set(higher) == {"markov2", "markov3", "rnn"}
+    assert set(m["baselines"]["backoff_beta"]) == {"markov2", "markov3"}
+    top = m["ceiling"]
+    assert 0 <= top["localisation"]["balanced_room_accuracy"] <= 1  # its quality: test_map_ceilings
+    assert top["localisation"]["no_odometry"]["balanced_room_accuracy"] is not None
+    assert top["planning"]["success"] in (0.0, 0.5, 1.0)
+    assert "ceilings: balanced room accuracy of MCL" in proc.stdout
     assert all(0 < v < b["unigram"] for v in higher.values())
     assert "baselines: bits/step markov2" in proc.stdout
     readout = m["baselines"]["localisation"]["history_readout"]
@@ -282,8 +288,11 @@ def test_cli_map_writes_strict_json_graphml_and_figures(cli, rooms1_db_path, tmp
     assert m["planning"]["pairs"] == 2
     for rate in m["planning"]["success"].values():
         assert rate in (0.0, 0.5, 1.0)
-    assert m["settings"]["contexts"] == 4  # the default: each clone split by 4 contexts
-    assert 1 <= m["states"]["active"] <= 6 * 3 * 4
+    assert m["settings"]["contexts"] == N_CONTEXTS == 2  # the default, chosen on validation
+    from sensorimotor.cli.app import N_CONTEXTS as CLI_DEFAULT
+
+    assert CLI_DEFAULT == N_CONTEXTS
+    assert 1 <= m["states"]["active"] <= 6 * 3 * N_CONTEXTS
     import networkx as nx
 
     graph = nx.read_graphml(out / "map.graphml")

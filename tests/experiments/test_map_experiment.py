@@ -18,7 +18,7 @@ from sensorimotor.learn.train import train
 from sensorimotor.report.blocks import to_markdown
 from sensorimotor.sim.database import generate, save_database
 from sensorimotor.sim.world import load_world
-from sensorimotor.stats import BEFORE
+from sensorimotor.stats import BEFORE, CHOSEN
 
 
 def test_the_verdict_needs_the_margin_and_two_standard_errors():
@@ -75,6 +75,27 @@ def test_aggregate_pairs_seeds_and_orders_representations():
     assert rec["claims"]["predicts"]["holds"] is True  # differences 0.2, 0.2: sd 0
     assert found["raw"]["claims"]["predicts"]["holds"] is False  # one seed, under the margin
     assert rec["claims"]["localises"]["holds"] is None
+    assert rec["claims"]["predicts"]["provenance"] == BEFORE
+    assert rec["claims"]["localises"]["provenance"] == CHOSEN  # its split, chosen on test first
+    assert "validation" in rec["claims"]["localises"]["where"]
+
+
+def test_aggregate_gives_the_maps_share_of_its_ceilings():
+    def fake(broom, ceiling, plan, plan_ceiling):
+        return {
+            "localisation": {"balanced_room_accuracy": {"map": broom}},
+            "planning": {"success": {"map": plan}},
+            "ceiling": {
+                "localisation": {"balanced_room_accuracy": ceiling},
+                "planning": {"success": plan_ceiling},
+            },
+        }
+
+    per_map = [("w", "raw", 0, fake(0.4, 0.8, 0.3, 0.6)), ("w", "raw", 1, fake(0.45, 0.9, 0.2, 0))]
+    metrics = map_stage.aggregate(per_map)["w"]["raw"]["metrics"]
+    assert metrics["broom.of_ceiling"]["values"] == [0.5, 0.5]
+    assert metrics["plan.of_ceiling"]["values"] == [0.5, None]  # a ceiling of 0: no share
+    assert metrics["plan.of_ceiling"]["mean"] is None
 
 
 @pytest.fixture(scope="module")
@@ -137,6 +158,10 @@ def test_run_maps_raw_and_each_run_caches_them_and_the_section_reads_them(
     assert "map/rooms1__s__s0/place_fields.png" in md  # the trained run's figure, not raw's
     assert "n=1" in md
     assert "| bits/step: map | " in md
+    assert "| balanced: MCL ceiling |" in md
+    assert "| planning success: map, of the ceiling |" in md
+    assert "| bits/step: GRU on (cell, action) |" in md
+    assert "chosen on these data" in md  # each claim says where its settings come from
     assert " ± " not in md.split("### The map on rooms1")[1]  # one seed: no spread shown
 
     # a cached map.json cut short: one line naming it, not a traceback

@@ -13,6 +13,7 @@ from sensorimotor.cli.app import (
     MAX_CLUSTERS,
     MAX_CONTEXTS,
     MAX_PAIRS,
+    N_CONTEXTS,
     app,
     err_console,
     progress,
@@ -89,7 +90,7 @@ def map_cmd(
         typer.Option(
             min=1, max=MAX_CONTEXTS, help="N: each clone split by the slow context (1: plain CSCG)."
         ),
-    ] = 4,
+    ] = N_CONTEXTS,
     fit_data: Annotated[
         Path | None, typer.Option(help="Fit the cells' k-means on this database (transfer).")
     ] = None,

@@ -197,6 +197,22 @@ def ngram_bits(
     (n(h_n) + beta)``, down to the unigram at order 0. Order 1 is ``markov_table``'s model; a
     history not seen in training (or cut by the sequence's start) leaves its lower order as is.
     """
+    return bits(ngram_probs(train_cells, train_actions, test_cells, test_actions, k, order,
+                            n_actions, beta))  # fmt: skip
+
+
+def ngram_probs(
+    train_cells: np.ndarray,
+    train_actions: np.ndarray,
+    test_cells: np.ndarray,
+    test_actions: np.ndarray,
+    k: int,
+    order: int,
+    n_actions: int = N_ACTIONS,
+    beta: float = SMOOTHING,
+) -> np.ndarray:
+    """(T - 1,) the probability ``ngram_bits``'s model gives each next cell of the test
+    sequence."""
     train_cells, train_actions = check_sequence(train_cells, train_actions, k, n_actions)
     test_cells, test_actions = check_sequence(test_cells, test_actions, k, n_actions)
     prior = unigram(train_cells, k)
@@ -211,7 +227,7 @@ def ngram_bits(
         n_pair = _lookup(keys, counts, np.where(test_h >= 0, test_h * k + test_cells[1:], -1))
         n_hist = _lookup(hists, totals, test_h)
         p = (n_pair + beta * p) / (n_hist + beta)
-    return bits(p)
+    return p
 
 
 def _histories(cells: np.ndarray, actions: np.ndarray, k: int, n_actions: int, n: int):

@@ -15,7 +15,8 @@ from scipy.signal import lfilter
 
 from sensorimotor.analysis.clusters import assign_clusters, fit_kmeans
 
-N_CONTEXTS = 4  # contexts each clone is split into (1: the plain cloned HMM)
+N_CONTEXTS = 2  # contexts each clone is split into (1: the plain cloned HMM); chosen on the
+# validation split (docs/results/map/diagnosis/select_contexts.py; 4 before, chosen on test)
 MAX_CONTEXTS = 16
 CONTEXT_TAU = 400.0  # steps; the robot stays about 330 steps in a room of Rooms1
 

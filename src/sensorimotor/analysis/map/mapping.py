@@ -38,7 +38,8 @@ import numpy as np
 
 from sensorimotor.analysis.analyze import RAW, load_inputs, representation_of
 from sensorimotor.analysis.clusters import N_CLUSTERS, assign_clusters, fit_kmeans
-from sensorimotor.analysis.map.baselines import higher_orders, history_readout
+from sensorimotor.analysis.map.baselines import baselines
+from sensorimotor.analysis.map.ceilings import NO_CEILING, ceilings
 from sensorimotor.analysis.map.cells import (
     ACTION_NAMES,
     N_ACTIONS,
@@ -139,13 +140,16 @@ def cell_steps(run, db: Database, k: int, seed: int, fit_db: Database | None = N
     z_train = representation_of(run, db, "train")
     z_fit = z_train if fit_db is None else representation_of(run, fit_db, "train")
     kmeans = fit_kmeans(z_fit, k, seed)
-    out = []
-    for split, z in (("train", z_train), ("test", representation_of(run, db, "test"))):
-        part = db.take(split)
-        motors = np.asarray(part.motors, dtype=np.float64)
-        poses = np.asarray(part.poses, dtype=np.float64)
-        out.append(Steps(assign_clusters(kmeans, z), action_bins(motors), motors, poses))
-    return out[0], out[1], kmeans
+    z_test = representation_of(run, db, "test")
+    return split_steps(db, kmeans, z_train, "train"), split_steps(db, kmeans, z_test), kmeans
+
+
+def split_steps(db: Database, kmeans, z: np.ndarray, split: str = "test") -> Steps:
+    """One split of ``db`` as Steps, the cells of its representation ``z`` by ``kmeans``."""
+    part = db.take(split)
+    motors = np.asarray(part.motors, dtype=np.float64)
+    poses = np.asarray(part.poses, dtype=np.float64)
+    return Steps(assign_clusters(kmeans, z), action_bins(motors), motors, poses)
 
 
 # --------------------------------------------------------------------------------------------
@@ -428,6 +432,7 @@ def map_files(
         n_contexts=contexts,
         progress=progress,
     )
+    val = split_steps(db, kmeans, representation_of(run, db, "val"), "val")
     bits = baseline_bits(train.cells, train.actions, test.cells, test.actions, clusters)
     for name, T in (("map", model.T), ("map_em", model.T_em)):
         per_cell = T.shape[1] // clusters  # the clones before the split, for T_em
@@ -465,10 +470,8 @@ def map_files(
         },
         "versions": _versions(),
         "bits_per_step": bits,
-        "baselines": {
-            "bits_per_step": higher_orders(train, test, clusters),
-            "localisation": {"history_readout": history_readout(train, test, world, clusters)},
-        },
+        "baselines": baselines(train, val, test, world, clusters, seed),
+        "ceiling": ceilings(db, world, seed, pairs) if db.has_walls else NO_CEILING,
         "states": {
             "total": model.n_states,
             "active": int(model.active.sum()),
@@ -550,16 +553,25 @@ def summary_lines(m: dict) -> list[str]:
 
 
 def _baseline_lines(m: dict) -> list[str]:
-    """The baselines' numbers (none in a map.json made before them)."""
-    base = m.get("baselines", {})
-    if not base:
-        return []
-    higher = ", ".join(f"{k} {_fmt(v)}" for k, v in base["bits_per_step"].items())
-    readout = base["localisation"]["history_readout"]
-    return [
-        f"  baselines: bits/step {higher}; balanced room accuracy of the history read-out "
-        f"{_fmt(readout)}"
-    ]
+    """The baselines' and ceilings' numbers (none in a map.json made before them)."""
+    base, top = m.get("baselines", {}), m.get("ceiling", {})
+    out = []
+    if base:
+        higher = ", ".join(f"{k} {_fmt(v)}" for k, v in base["bits_per_step"].items())
+        readout = base["localisation"]["history_readout"]
+        out.append(
+            f"  baselines: bits/step {higher}; balanced room accuracy of the history read-out "
+            f"{_fmt(readout)}"
+        )
+    if top:
+        loc = top["localisation"]
+        blind = (loc.get("no_odometry") or {}).get("balanced_room_accuracy")
+        out.append(
+            f"  ceilings: balanced room accuracy of MCL {_fmt(loc['balanced_room_accuracy'])} "
+            f"(no odometry {_fmt(blind)}); true-pose planning "
+            f"{_fmt(top['planning']['success'], '.2f')}"
+        )
+    return out
 
 
 def _planning_warning(planning: dict) -> list[str]:

@@ -172,6 +172,19 @@ def run_episode(
     return None
 
 
+def start_goal_pairs(world: World, seed: int, n_pairs: int) -> list[tuple]:
+    """The episodes' (goal position (2,), start pose, two episode seeds) for ``seed``: a goal
+    and a start (free positions, ``sample_start``), then a seed for the map's episode and one
+    for the random behaviour's, pair after pair; the true-pose ceiling plans the same pairs."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(n_pairs):
+        goal_xy = np.array(sample_start(world, rng)[:2])
+        start = sample_start(world, rng)
+        out.append((goal_xy, start, rng.integers(0, 2**32, 2)))
+    return out
+
+
 def planning(
     world: World,
     layout: SensorLayout,
@@ -190,15 +203,11 @@ def planning(
     (positions (n, 2), goal (2,), steps or None). ``encoder()`` returns a fresh function from
     one reading (R,) to its representation (D,); ``progress(pairs done, success so far)``
     after each pair."""
-    rng = np.random.default_rng(seed)
     reached = {"map": [], "random": []}
     traces = []
-    for pair in range(n_pairs):
-        goal_xy = np.array(sample_start(world, rng)[:2])  # a free position
-        start = sample_start(world, rng)
+    for pair, (goal_xy, start, seeds) in enumerate(start_goal_pairs(world, seed, n_pairs)):
         trace: list = []
         distances = goal_distances(model, goal_states(model, state_mean, occupancy, goal_xy))
-        seeds = rng.integers(0, 2**32, 2)
         for name, seed_ in zip(("map", "random"), seeds, strict=True):
             steps = run_episode(
                 world,
