@@ -541,3 +541,21 @@ def test_a_world_of_many_walls_rolls_out_through_its_grid_as_without():
     ):
         assert a.tobytes() == b.tobytes()
     assert (fast.motors[:, 0] == 0).mean() > 0.05  # it meets walls
+
+
+def test_a_start_is_drawn_in_the_largest_free_region_never_in_a_sealed_room():
+    """An imported map's building interiors are free space a walk started inside never leaves:
+    a start is drawn in the world's largest free region; a world of one region draws as before."""
+    from sensorimotor.sim.world import world_from_dict
+
+    box = [[0.0, 0.0, 20.0, 0.0], [20.0, 0.0, 20.0, 20.0], [20.0, 20.0, 0.0, 20.0],
+           [0.0, 20.0, 0.0, 0.0]]  # fmt: skip
+    sealed = world_from_dict({"name": "sealed", "size": [50.0, 50.0], "walls": box})
+    region = sim._start_region(sealed)
+    assert region is not None
+    assert not region.contains(10.0, 10.0)  # the 20 x 20 box is the smaller region
+    assert region.contains(40.0, 40.0)
+    starts = [sim.sample_start(sealed, np.random.default_rng(s))[:2] for s in range(200)]
+    assert not any(x < 20 and y < 20 for x, y in starts)  # 16 % of the world, never drawn
+    for name in ("square", "rooms1", "rooms2"):
+        assert sim._start_region(load_world(name)) is None

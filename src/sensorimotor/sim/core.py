@@ -10,6 +10,7 @@ door (``_cast``, ``grid.for_rays``): the same arithmetic, the same bits.
 
 from __future__ import annotations
 
+import hashlib
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -379,14 +380,36 @@ def _heading(rng: np.random.Generator) -> float:
     return math.pi if h == -math.pi else h
 
 
+_REGIONS: dict[bytes, object] = {}  # start_region of each world seen, by its walls' digest
+
+
+def _start_region(world: World):
+    """``floorplan.start_region`` of ``world``, computed once per process."""
+    from sensorimotor.sim.floorplan import start_region
+
+    key = hashlib.sha256(
+        np.asarray([world.width, world.height]).tobytes() + world.segments.tobytes()
+    ).digest()
+    if key not in _REGIONS:
+        _REGIONS[key] = start_region(world)
+    return _REGIONS[key]
+
+
 def sample_start(world: World, rng: np.random.Generator) -> tuple[float, float, float]:
-    """A start pose uniform over positions at least START_CLEARANCE from every wall."""
+    """A start pose uniform over positions at least START_CLEARANCE from every wall, in the
+    world's largest free region when its walls leave several (``floorplan.start_region``: an
+    imported map's building interiors are left out; one region, as in the paper's worlds,
+    draws as before)."""
     segments = world.segments
+    region = _start_region(world)
     for _ in range(10_000):
         x, y = rng.uniform(0, world.width), rng.uniform(0, world.height)
-        if point_segment_distance(segments, np.array([x]), np.array([y])).min() >= START_CLEARANCE:
+        clear = point_segment_distance(segments, np.array([x]), np.array([y])).min()
+        if clear >= START_CLEARANCE and (region is None or region.contains(x, y)):
             return x, y, _heading(rng)
     cells = free_start_cells(world)  # a sliver of free space: pick a free grid cell
+    if region is not None:
+        cells = cells[[region.contains(x, y) for x, y in cells]] if len(cells) else cells
     x, y = cells[rng.integers(len(cells))]
     return float(x), float(y), _heading(rng)
 

@@ -205,6 +205,33 @@ def free_regions(world: World, resolution: float = FLOOD_RESOLUTION) -> int:
     return int((sizes >= MIN_REGION).sum())
 
 
+@dataclass(frozen=True)
+class StartRegion:
+    """The largest free region of a world with several (``start_region``), as a grid mask."""
+
+    mask: np.ndarray  # (Y, X) bool: cells of the region
+    resolution: float
+
+    def contains(self, x: float, y: float) -> bool:
+        """Whether the grid cell of (x, y) belongs to the region."""
+        j = min(max(int(y / self.resolution), 0), self.mask.shape[0] - 1)
+        i = min(max(int(x / self.resolution), 0), self.mask.shape[1] - 1)
+        return bool(self.mask[j, i])
+
+
+def start_region(world: World, resolution: float = FLOOD_RESOLUTION) -> StartRegion | None:
+    """Where a start pose may be: the largest free region (by area) when the walls leave more
+    than one (``free_regions``), else None (anywhere free). An imported map's building
+    interiors and sealed pockets are regions of their own, which a walk started inside never
+    leaves; the paper's worlds, floor plans and wall layouts have one region."""
+    resolution = max(resolution, world.width / 1000, world.height / 1000)
+    labels, _, _, _ = _flood(world, resolution)
+    sizes = np.bincount(labels.ravel())[1:] * resolution**2
+    if int((sizes >= MIN_REGION).sum()) <= 1:
+        return None
+    return StartRegion(labels == 1 + int(np.argmax(sizes)), resolution)
+
+
 def reachable(world: World, resolution: float = FLOOD_RESOLUTION) -> bool:
     """Every free place reachable from every other (one free region, ``free_regions``): the
     one test of a generated world, floor plan or wall layout, that no wall seals a room."""
