@@ -26,6 +26,7 @@ from sensorimotor.errors import InputError
 from sensorimotor.sim import mrpt
 from sensorimotor.sim.core import SensorLayout, sample_start
 from sensorimotor.sim.database import Database, generate, load_database
+from sensorimotor.sim.floorplan import start_region
 from sensorimotor.sim.mrpt import END, gridmap_bytes, head, read_rawlog, scan_bytes
 from sensorimotor.sim.rawlog import import_rawlog, write_rawlog
 from sensorimotor.sim.rosmap import import_mrpt_map
@@ -223,10 +224,14 @@ def test_the_campus_imports_within_30_s_and_1_gb_and_seed_0_starts_in_its_free_s
     assert 10_000 < text.count("\n  [") <= 100_000  # 19,948 walls (56,230 before the opening)
     # the start seed 0 draws (as ``generate`` does) lies in the free space, not inside a
     # building: a ray to the right crosses the walls an odd number of times (the grid's
-    # border is blocked); most seeds start inside a blocked mass (see docs/DESIGN.md)
+    # border is blocked); and every seed's start lies in the campus's largest free region
     world = load_world(out)
     x, y, _ = sample_start(world, np.random.default_rng(0))
     walls = np.asarray(world.walls)
     upright = walls[walls[:, 0] == walls[:, 2]]
     low, high = np.minimum(upright[:, 1], upright[:, 3]), np.maximum(upright[:, 1], upright[:, 3])
     assert ((upright[:, 0] > x) & (low <= y) & (y < high)).sum() % 2 == 1
+    region = start_region(world)
+    assert region is not None  # buildings and the unknown around the campus: regions of their own
+    for seed in range(20):  # before the start region, 5 of these 20 started inside a building
+        assert region.contains(*sample_start(world, np.random.default_rng(seed))[:2])
