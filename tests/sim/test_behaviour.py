@@ -94,7 +94,7 @@ def test_smooth_database_records_its_behaviour(tmp_path):
 
 
 def test_an_unknown_behaviour_is_refused():
-    with pytest.raises(InputError, match="--behaviour must be one of paper, smooth, got 'ou'"):
+    with pytest.raises(InputError, match="--behaviour must be one of paper, smooth, lattice, got 'ou'"):
         sim.rollout(load_world("square"), 10, behaviour="ou")
 
 
@@ -159,5 +159,29 @@ def test_generate_cli_names_and_records_the_behaviour(tmp_path):
     assert "smooth behaviour" in proc.stderr
     assert load_database(tmp_path / "square_s0_smooth.npz").behaviour == "smooth"
     bad = run_cli("generate", "square", "--steps", "500", "--behaviour", "zigzag", cwd=tmp_path)
-    assert_one_line_error(bad, "--behaviour must be one of paper, smooth, got 'zigzag'")
+    assert_one_line_error(bad, "--behaviour must be one of paper, smooth, lattice, got 'zigzag'")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["square_s0_smooth.npz"]
+
+
+def test_the_lattice_behaviour_keeps_its_headings_and_commands_on_the_lattice():
+    """``generate --behaviour lattice`` (issue 37: a map in its own regime): a few exact
+    commands, headings on the multiples of pi/6, seeded, and never through a wall."""
+    w = load_world("rooms1")
+    run = sim.rollout(w, 20_000, seed=3, behaviour="lattice")
+    again = sim.rollout(w, 20_000, seed=3, behaviour="lattice", chunk=777)
+    assert np.array_equal(run.poses, again.poses)
+    assert np.array_equal(run.sensors, again.sensors)
+    turns = run.poses[:, 2] / sim.LATTICE_TURN
+    np.testing.assert_allclose(turns, np.round(turns), atol=1e-9)
+    d, r = run.motors[:, 0], run.motors[:, 1]
+    assert set(np.unique(d)) == {0.0, 0.9}
+    allowed = {0.0, sim.LATTICE_TURN, -sim.LATTICE_TURN, *(math.pi + k * sim.LATTICE_TURN
+                                                              for k in (-1, 0, 1))}  # fmt: skip
+    assert all(min(abs(v - a) for a in allowed) < 1e-12 for v in np.unique(r))
+    reflex = r > 2.0
+    assert 0.0 < reflex.mean() < 0.1  # turns around at walls, and is not caught at one
+    assert abs((d > 0).mean() - 0.5 * (1 - reflex.mean())) < 0.02  # forward half the free steps
+    p = run.poses
+    stops = np.vstack([p[1:, :2], sim.apply_motor(*p[-1], *run.motors[-1])[:2]])
+    assert crossings(p[:, :2], stops, w.segments) == 0
+    assert np.ptp(p[:, 0]) > 40  # it roams the world

@@ -20,13 +20,31 @@ import numpy as np
 
 from sensorimotor.errors import InputError
 from sensorimotor.sim import MAX_RAYS as _MAX_RAYS
+from sensorimotor.sim.behaviours import (  # noqa: F401 (what walks the robot, read through core too)
+    BEHAVIOURS,
+    LATTICE,
+    LATTICE_TURN,
+    PAPER,
+    PAPER_TURN_SD,
+    SMOOTH,
+    SMOOTH_A,
+    SMOOTH_SD,
+    SMOOTH_TAU,
+    TURN_THRESHOLD,
+    UNIFORMS,
+    behaviour,
+    check_behaviour,
+    lattice_behaviour,
+    reflex,
+    smooth_behaviour,
+    snap_heading,
+)
 from sensorimotor.sim.grid import WallGrid, cast_grid, for_rays
 from sensorimotor.sim.world import START_CLEARANCE, World, free_start_cells, point_segment_distance
 
 SENSOR_ANGLES = np.array([-0.6, -0.3, 0.0, 0.3, 0.6])  # rad from the heading; index 0 rightmost
 MAX_RANGE = 10.0  # units; a ray that hits nothing nearer reads exactly this
 MAX_RAYS = _MAX_RAYS  # rays a layout may have
-TURN_THRESHOLD = 1.0  # units; the behaviour turns around when a reading is below this
 EPS = 1e-12
 
 
@@ -154,69 +172,6 @@ def wrap_angle(a):
     while a <= -math.pi:
         a += 2.0 * math.pi
     return a
-
-
-BEHAVIOURS = ("paper", "smooth")
-"""``generate --behaviour``: a name's index is the id ``_rollout`` takes (``PAPER``, ``SMOOTH``)."""
-PAPER, SMOOTH = 0, 1
-UNIFORMS = (2, 4)
-"""Uniforms each behaviour draws a step, by id (the paper's two keep their bytes)."""
-PAPER_TURN_SD = math.pi / 6.0 / math.sqrt(3.0)
-"""The standard deviation of the paper's turn ``U(-pi/6, pi/6)`` (0.302 rad)."""
-SMOOTH_TAU = 5.0
-"""Steps: the time constant of the smooth behaviour's turning rate (an Ornstein-Uhlenbeck
-process sampled once a step; docs/DESIGN.md, "The smooth behaviour")."""
-SMOOTH_A = math.exp(-1.0 / SMOOTH_TAU)
-"""The turning rate's lag-1 autocorrelation, ``exp(-1 / tau)`` (0.819)."""
-SMOOTH_SD = PAPER_TURN_SD * math.sqrt((1.0 - SMOOTH_A) / (1.0 + SMOOTH_A))
-"""The turning rate's stationary sd (0.095 rad): the heading then diffuses as fast as under
-the paper's behaviour over many steps (the variance of a sum of n rates tends to
-``n SD^2 (1 + a) / (1 - a) = n PAPER_TURN_SD^2``)."""
-SMOOTH_KICK = SMOOTH_SD * math.sqrt(1.0 - SMOOTH_A * SMOOTH_A)
-"""The sd of a step's innovation, so that the rate stays at SMOOTH_SD."""
-
-
-def check_behaviour(name: str) -> int:
-    """The id of behaviour ``name``; InputError naming ``--behaviour`` when it is unknown."""
-    if name not in BEHAVIOURS:
-        raise InputError(f"--behaviour must be one of {', '.join(BEHAVIOURS)}, got {name!r}")
-    return BEHAVIOURS.index(name)
-
-
-@numba.njit(cache=True)
-def reflex(u):
-    """The wall reflex of every behaviour from a uniform in [0, 1): ``(0, r)``,
-    ``r ~ U(pi - pi/10, pi + pi/10)`` (turn around)."""
-    return 0.0, math.pi - math.pi / 10.0 + u * (math.pi / 5.0)
-
-
-@numba.njit(cache=True)
-def behaviour(min_reading, u0, u1):
-    """The paper's wall-avoiding random behaviour (section IV.C) from two uniforms in [0, 1).
-
-    If a reading is below 1: ``(0, r)``, ``r ~ U(pi - pi/10, pi + pi/10)`` (turn around);
-    else ``d ~ U(0, 1)``, ``r ~ U(-pi/6, pi/6)``. Returns ``(d, r)``.
-    """
-    if min_reading < TURN_THRESHOLD:
-        return reflex(u1)
-    return u0, -math.pi / 6.0 + u1 * (math.pi / 3.0)
-
-
-@numba.njit(cache=True)
-def smooth_behaviour(min_reading, u0, u1, u2, u3, rate):
-    """A RatInABox-like smooth random motion from four uniforms in [0, 1) and the turning
-    rate of the step before: the rate follows an Ornstein-Uhlenbeck process (mean 0, time
-    constant SMOOTH_TAU steps, stationary sd SMOOTH_SD; its normal innovation by Box-Muller
-    from ``u2, u3``), the forward speed is ``u0`` (``U(0, 1)``, the paper's range), and the
-    paper's reflex (from ``u1``) replaces the command when a reading is below 1; the rate
-    runs on underneath. Returns ``(d, r, rate)``.
-    """
-    z = math.sqrt(-2.0 * math.log(1.0 - u2)) * math.cos(2.0 * math.pi * u3)
-    rate = SMOOTH_A * rate + SMOOTH_KICK * z
-    if min_reading < TURN_THRESHOLD:
-        d, r = reflex(u1)
-        return d, r, rate
-    return u0, rate, rate
 
 
 @numba.njit(cache=True)
@@ -359,6 +314,8 @@ def _rollout(
         if kind == SMOOTH:
             u = uniforms[t]
             d, r, rate = smooth_behaviour(lowest, u[0], u[1], u[2], u[3], rate)
+        elif kind == LATTICE:
+            d, r = lattice_behaviour(lowest, uniforms[t, 0])
         else:
             d, r = behaviour(lowest, uniforms[t, 0], uniforms[t, 1])
         motors[t, 0] = d
@@ -371,6 +328,8 @@ def _rollout(
         x = x + d * ch
         y = y + d * sh
         heading = wrap_angle(heading + r)
+        if kind == LATTICE and not motor_run:  # rounding's drift, not a motor noise's
+            heading = wrap_angle(snap_heading(heading))
     return x, y, heading, rate
 
 
@@ -489,6 +448,8 @@ def rollout(
     motors = np.empty((steps, 2))
     poses = np.empty((steps, 3))
     x, y, heading = sample_start(world, rng)
+    if kind == LATTICE:  # the lattice's headings from the start
+        heading = float(wrap_angle(snap_heading(heading)))
     children = rng.spawn(3) if (noise_std or dropout or motor_noise_std) else None
     rate = 0.0
     for begin in range(0, steps, chunk):
