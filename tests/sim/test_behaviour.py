@@ -180,6 +180,7 @@ def test_the_lattice_behaviour_keeps_its_headings_and_commands_on_the_lattice():
     assert all(min(abs(v - a) for a in allowed) < 1e-12 for v in np.unique(r))
     reflex = r > 2.0
     assert 0.0 < reflex.mean() < 0.1  # turns around at walls, and is not caught at one
+    assert np.array_equal(reflex_steps(run.motors), reflex)  # each of its three reflex turns
     assert abs((d > 0).mean() - 0.5 * (1 - reflex.mean())) < 0.02  # forward half the free steps
     p = run.poses
     stops = np.vstack([p[1:, :2], sim.apply_motor(*p[-1], *run.motors[-1])[:2]])

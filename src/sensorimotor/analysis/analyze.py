@@ -75,16 +75,17 @@ def representation_of(
     return z
 
 
-def probe_places(run, db: Database) -> dict | None:
+def probe_places(run, db: Database, z: np.ndarray | None = None) -> dict | None:
     """``probes.place_probes`` of ``run``'s representation (``"raw"``, a run folder or a loaded
     run): fitted on the first ``PROBE_FIT_MAX`` steps of ``db``'s training split, scored on its
-    test split; the room is None where the world names no rooms (or its walls are unknown).
-    None where a split is too short for the burn-in (a short recording)."""
+    test split (``z``, that split's representation, when the caller has it); the room is None
+    where the world names no rooms (or its walls are unknown). None where a split is too short
+    for the burn-in (a short recording)."""
     fit, test = db.take("train"), db.take(SPLIT)
     if min(len(fit), len(test)) <= BURN_IN + KNN_K:
         return None
     z_fit = representation_of(run, db, "train", PROBE_FIT_MAX)
-    z = representation_of(run, db, SPLIT)
+    z = representation_of(run, db, SPLIT) if z is None else z
     fit_poses = fit.poses[: len(z_fit)]
     rooms = db.world.rooms if db.has_walls else ()
     room_fit = room = None
@@ -144,7 +145,7 @@ def _analyze(
     run, db: Database, seed: int, fitted: RepresentationAnalysis | None = None, fit_probes=False
 ):
     """``analyze_representation`` of ``run`` on ``db``'s test split after its burn-in; returns
-    the analysis and the burn-in."""
+    the analysis, the burn-in and the whole split's representation."""
     z = representation_of(run, db)
     part = db.take(SPLIT)
     start = burn_in(run, len(z))
@@ -160,7 +161,7 @@ def _analyze(
         z[start:], truth_readings(db)[start:], part.poses[start:], world, seed, kmeans, pca,
         db.layout, name=_name(db), probe_fit=probe_fit,
     )  # fmt: skip
-    return result, start
+    return result, start, z
 
 
 def _name(db: Database) -> str:
@@ -239,10 +240,10 @@ def analyze_files(
     from sensorimotor.sim.plots import save_figure
 
     run, db, fit_db, out = load_inputs(run, data, fit_data, out, OUTPUTS)
-    source, fit_start = _analyze(run, fit_db, seed) if fit_db is not None else (None, 0)
-    result, start = _analyze(run, db, seed, source, event_probes and fit_db is None)
+    source, fit_start, _ = _analyze(run, fit_db, seed) if fit_db is not None else (None, 0, None)
+    result, start, z = _analyze(run, db, seed, source, event_probes and fit_db is None)
     # a transfer's probes would be those of the plain analysis of ``data``: left to it
-    probes = probe_places(run, db) if probes and fit_db is None else None
+    probes = probe_places(run, db, z) if probes and fit_db is None else None
     out = _out_dir(out)  # made only once the analysis has succeeded
     # metrics.json, written last, marks a whole analysis: a folder that a failure (a full
     # disk) leaves with this analysis' figures has no metrics of an earlier one beside them

@@ -110,7 +110,8 @@ def generate(
         str,
         typer.Option(
             help="paper: the paper's random walk (a new turn each step); smooth: a turning "
-            "rate that drifts (Ornstein-Uhlenbeck). Both turn around near a wall."
+            "rate that drifts (Ornstein-Uhlenbeck); lattice: forward 0.9 or a turn of pi/6, "
+            "headings on a lattice. Each turns around near a wall."
         ),
     ] = "paper",
 ) -> None:

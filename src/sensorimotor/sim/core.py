@@ -23,6 +23,7 @@ from sensorimotor.sim import MAX_RAYS as _MAX_RAYS
 from sensorimotor.sim.behaviours import (  # noqa: F401 (what walks the robot, read through core too)
     BEHAVIOURS,
     LATTICE,
+    LATTICE_STEP,
     LATTICE_TURN,
     PAPER,
     PAPER_TURN_SD,
@@ -244,9 +245,9 @@ def _rollout(
     kind,
     rate,
 ):
-    """Run ``len(uniforms)`` steps of behaviour ``kind`` (``PAPER``, ``SMOOTH``: its uniforms
-    a step are ``uniforms[t]``, its state ``rate``) from pose (x, y, heading), filling the
-    outputs.
+    """Run ``len(uniforms)`` steps of behaviour ``kind`` (``PAPER``, ``SMOOTH``, ``LATTICE``: its
+    uniforms a step are ``uniforms[t]``, the smooth one's state ``rate``) from pose (x, y,
+    heading), filling the outputs.
 
     Row t: ``poses[t]`` is where ``sensors[t]`` is read; ``motors[t]`` is chosen from it and
     leads to row t + 1. The behaviour reads the paper's five rays, noiseless (a reflex the
@@ -414,8 +415,8 @@ def rollout(
     grid: WallGrid | None = None,
     behaviour: str = "paper",
 ) -> Rollout:
-    """Run ``behaviour`` (``BEHAVIOURS``: the paper's, or the smooth random motion) for
-    ``steps`` steps from a random start; float64 arrays.
+    """Run ``behaviour`` (``BEHAVIOURS``: the paper's, the smooth random motion or the lattice)
+    for ``steps`` steps from a random start; float64 arrays.
 
     The generator draws the start pose, then ``UNIFORMS`` uniforms per step (the paper's
     behaviour two), chunk after chunk; the smooth behaviour's turning rate starts at 0 and is

@@ -30,6 +30,7 @@ from sensorimotor.files import atomic_path, check_input
 from sensorimotor.sim.core import (
     BEHAVIOURS,
     DEFAULT_LAYOUT,
+    LATTICE_STEP,
     MAX_RAYS,
     SMOOTH_SD,
     SMOOTH_TAU,
@@ -229,8 +230,9 @@ BEHAVIOUR_TEXT = {
     "smooth": "smooth: min(s) < 1 -> (0, U(pi - pi/10, pi + pi/10)); else (U(0, 1), rate), "
     f"rate an Ornstein-Uhlenbeck process (mean 0, time constant {SMOOTH_TAU:g} steps, "
     f"stationary sd {SMOOTH_SD:.4f} rad) running every step",
-    "lattice": "lattice: min(s) < 1 -> (0, pi + k pi/6), k in {-1, 0, 1}; else (0.9, 0), (0, pi/6) or (0, -pi/6) with "
-    "probabilities 1/2, 1/4, 1/4; headings on the multiples of pi/6",
+    "lattice": "lattice: min(s) < 1 -> (0, pi + k pi/6), k in {-1, 0, 1}; else "
+    f"({LATTICE_STEP:g}, 0), (0, pi/6) or (0, -pi/6) with probabilities 1/2, 1/4, 1/4; "
+    "headings on the multiples of pi/6",
 }
 """``meta.behaviour``: each behaviour in words (the paper's as every database before had it)."""
 

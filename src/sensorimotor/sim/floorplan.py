@@ -200,9 +200,14 @@ def free_regions(world: World, resolution: float = FLOOD_RESOLUTION) -> int:
     """How many separate free regions the walls leave (a room sealed by walls is one more);
     1: every free place is reachable from every other. Regions under ``MIN_REGION`` are not
     counted: where two walls meet, the grid may leave a few cells between them."""
-    labels, _, _, _ = _flood(world, resolution)
-    sizes = np.bincount(labels.ravel())[1:] * resolution**2
+    _, sizes = _regions(world, resolution)
     return int((sizes >= MIN_REGION).sum())
+
+
+def _regions(world: World, resolution: float) -> tuple[np.ndarray, np.ndarray]:
+    """(labels, areas): ``_flood``'s labels and each free region's area (label k + 1 at k)."""
+    labels, _, _, _ = _flood(world, resolution)
+    return labels, np.bincount(labels.ravel())[1:] * resolution**2
 
 
 @dataclass(frozen=True)
@@ -225,8 +230,7 @@ def start_region(world: World, resolution: float = FLOOD_RESOLUTION) -> StartReg
     interiors and sealed pockets are regions of their own, which a walk started inside never
     leaves; the paper's worlds, floor plans and wall layouts have one region."""
     resolution = max(resolution, world.width / 1000, world.height / 1000)
-    labels, _, _, _ = _flood(world, resolution)
-    sizes = np.bincount(labels.ravel())[1:] * resolution**2
+    labels, sizes = _regions(world, resolution)
     if int((sizes >= MIN_REGION).sum()) <= 1:
         return None
     return StartRegion(labels == 1 + int(np.argmax(sizes)), resolution)

@@ -1,8 +1,9 @@
 """Motion statistics of a recorded behaviour: how it turns and how fast it goes, from the motor
-commands alone (``sim.core.BEHAVIOURS``: the paper's random walk, the smooth motion).
+commands alone (``sim.core.BEHAVIOURS``: the paper's random walk, the smooth motion, the lattice).
 
-A step is the wall reflex when it stands still and turns by at least ``pi - pi/10``
-(``sim.core.reflex``); every other step is a free step, and the turning statistics are over
+A step is the wall reflex when it stands still and turns by at least ``5 pi/6`` (the smallest
+reflex turn of any behaviour: the lattice's ``pi - pi/6``; the paper's ``sim.core.reflex`` turns
+by at least ``pi - pi/10``, and no free step turns by more than a few tenths); every other step is a free step, and the turning statistics are over
 free steps and pairs of consecutive free steps (a reflex's half turn is not a turning rate).
 """
 
@@ -12,12 +13,12 @@ import math
 
 import numpy as np
 
-REFLEX_TURN = math.pi - math.pi / 10.0  # the reflex's smallest turn (sim.core.reflex)
+REFLEX_TURN = math.pi - math.pi / 6.0  # the smallest reflex turn of any behaviour (the lattice's)
 
 
 def reflex_steps(motors: np.ndarray) -> np.ndarray:
-    """(N,) bool: the rows whose command is the wall reflex (d = 0, r >= pi - pi/10 up to
-    float32 rounding)."""
+    """(N,) bool: the rows whose command is the wall reflex (d = 0, r >= 5 pi/6 up to float32
+    rounding)."""
     m = np.asarray(motors, dtype=np.float64)
     return (m[:, 0] == 0.0) & (m[:, 1] >= REFLEX_TURN - 1e-6)
 
