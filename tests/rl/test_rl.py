@@ -240,6 +240,10 @@ def test_a_grid_resumed_after_a_lost_agent_gives_the_same_bytes(tmp_path):
     assert not (tmp_path / "raw__s0" / "policy.zip").exists()
     with pytest.raises(InputError, match="other settings"):
         run_grid(tiny_config(steps=192), tmp_path)
+    agent["standardisation"]["sd"] = agent["standardisation"]["sd"][:2]  # hand-edited, ragged
+    (tmp_path / "raw__s0" / "result.json").write_text(json.dumps(agent))
+    with pytest.raises(InputError, match=r"raw__s0.*corrupt standardisation"):
+        run_grid(config, tmp_path)
 
 
 def test_inputs_are_checked_before_any_agent_trains(tmp_path):

@@ -289,7 +289,19 @@ def load_agent(path: Path, config: RLConfig) -> dict | None:
         raise InputError(f"{path}: not an agent result ({err})") from None
     if made_with != json.loads(json.dumps(config.agent_config())):
         raise InputError(f"{path}: made with other settings; use another --out")
+    stats = result.get("standardisation")
+    if stats is not None and not _is_standardisation(stats):
+        raise InputError(f"{path}: corrupt standardisation (mean and sd: equal lists of numbers)")
     return result
+
+
+def _is_standardisation(stats) -> bool:
+    """Whether an agent result's ``standardisation`` is what ``Standardisation.to_dict`` wrote."""
+    try:
+        mean, sd = np.asarray(stats["mean"], float), np.asarray(stats["sd"], float)
+    except (KeyError, TypeError, ValueError):
+        return False
+    return mean.ndim == sd.ndim == 1 and mean.shape == sd.shape and bool((sd >= 0).all())
 
 
 def worlds_holding(task: str, worlds: tuple[str, ...]) -> tuple[str, ...]:
