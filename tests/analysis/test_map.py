@@ -270,7 +270,8 @@ def test_cli_map_writes_strict_json_graphml_and_figures(cli, rooms1_db_path, tmp
     assert b["markov"] < b["unigram"]
     assert b["map"] < b["unigram"]
     higher = m["baselines"]["bits_per_step"]
-    assert set(higher) == {"markov2", "markov3", "rnn"}
+    assert set(higher) == {"markov2", "markov3", "rnn", "hmm"}
+    assert m["baselines"]["plain_hmm"]["states"] == m["states"]["active"]
     assert set(m["baselines"]["backoff_beta"]) == {"markov2", "markov3"}
     top = m["ceiling"]
     assert 0 <= top["localisation"]["balanced_room_accuracy"] <= 1  # its quality: test_map_ceilings

@@ -6,7 +6,9 @@
   ``beta`` chosen among ``BETAS`` on the validation split, beside the first-order Markov model
   of ``cells.baseline_bits`` (beta 1, set before the data); and a small recurrent net
   (``rnn_bits``: a GRU over (cell, action) pairs predicting the next cell, trained on windows
-  of the training split, its best weights chosen on the validation split).
+  of the training split, its best weights chosen on the validation split); and the plain HMM
+  with as many states as the map (``hmm``: every state emits every cell, EM on the first
+  ``hmm.HMM_STEPS`` training steps, its iteration chosen on the validation split).
 - **Localisation**: a class-balanced logistic read-out of the decayed history of cells
   (``context.decayed_history``, the feature the context split itself uses).
 """
@@ -19,6 +21,7 @@ import numpy as np
 
 from sensorimotor.analysis.map.cells import ngram_bits
 from sensorimotor.analysis.map.context import CONTEXT_TAU, decayed_history
+from sensorimotor.analysis.map.hmm import plain_hmm_bits
 from sensorimotor.sim.world import World
 from sensorimotor.stats import balanced_accuracy
 
@@ -157,12 +160,16 @@ def rnn_bits(train, val, test, clusters: int, seed: int = 0, updates: int | None
         torch.set_num_threads(threads)
 
 
-def baselines(train, val, test, world: World, clusters: int, seed: int = 0) -> dict:
-    """The map's baselines as ``map.json`` records them (module docstring)."""
+def baselines(train, val, test, world: World, clusters: int, states: int, seed: int = 0) -> dict:
+    """The map's baselines as ``map.json`` records them (module docstring); ``states``: the
+    map's, which the plain HMM gets as many of."""
     bits, betas = higher_orders(train, val, test, clusters)
     bits["rnn"] = rnn_bits(train, val, test, clusters, seed)
+    hmm = plain_hmm_bits(train, val, test, clusters, states, seed)
+    bits["hmm"] = hmm.pop("bits")
     return {
         "bits_per_step": bits,
         "backoff_beta": betas,
+        "plain_hmm": hmm,
         "localisation": {"history_readout": history_readout(train, test, world, clusters)},
     }

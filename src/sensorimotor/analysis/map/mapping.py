@@ -470,7 +470,7 @@ def map_files(
         },
         "versions": _versions(),
         "bits_per_step": bits,
-        "baselines": baselines(train, val, test, world, clusters, seed),
+        "baselines": baselines(train, val, test, world, clusters, int(model.active.sum()), seed),
         "ceiling": ceilings(db, world, seed, pairs) if db.has_walls else NO_CEILING,
         "states": {
             "total": model.n_states,
