@@ -24,7 +24,7 @@ def _context(tmp_path, data: dict, runs: dict, seen: list, worlds=("rooms1",)):
         seeds=1,
         device="cpu",
         data=data,
-        run_dir=lambda world, model, seed: runs[model],
+        run_dir=lambda world, model, seed: tmp_path / "runs" / f"{world}__{model}__s{seed}",
         scale=SimpleNamespace(name="smoke", steps=20_000, epochs=lambda kind: 1, patience=1),
     )
 

@@ -70,8 +70,9 @@ def reproduce(
             "rays, noise, unseen floor plans), rl (PPO agents on the Rooms1 encoders), walls "
             "(Table I over wall layouts that fit the paper's sentences), real (a real robot's "
             "log and a real campus map), memory (Rec-SMA, a memory that reads the motor "
-            "commands, and its ablations: do they know the room and the position?), "
-            "behaviour (Table I's ordering, the corner cell and the memory under a smooth "
+            "commands, and its ablations: do they know the room and the position?), homing "
+            "(PPO agents that must come back to a room they cannot see: raw, Rec-SM, Rec-SMA "
+            "and the oracle pose+raw), behaviour (Table I's ordering, the corner cell and the memory under a smooth "
             "random motion, on Square). Default: none."
         ),
     ] = None,

@@ -68,6 +68,11 @@ EXPERIMENTS: dict[str, Experiment] = {
             "a memory that reads the motor commands: does it know the room and the position?",
         ),
         Experiment(
+            "homing",
+            "sensorimotor.experiments.homing",
+            "an agent that must come back to a room it cannot see: does a memory of the commands help?",
+        ),
+        Experiment(
             "behaviour",
             "sensorimotor.experiments.behaviour",
             "Table I's ordering, the corner cell and the memory under a smooth random motion",

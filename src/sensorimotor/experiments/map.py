@@ -45,6 +45,7 @@ from sensorimotor.stats import (
     mean_sd,
     paired_differences,
     standard_error,
+    t_interval,
     word,
 )
 from sensorimotor.version import __version__
@@ -233,7 +234,8 @@ def verdict(
     ``better`` and ``worse`` are success rates; the standard error is then at least the
     binomial one of the mean difference (so that one seed of 100 planning pairs is judged on
     its sampling error, about 0.07, too)."""
-    numbers = {"mean": None, "sd": None, "se": None, "n": len(better), "margin": margin}
+    numbers = {"mean": None, "sd": None, "se": None, "n": len(better), "margin": margin,
+               "t_interval": None}  # fmt: skip
     holds = None
     if better and not any(v is None for v in [*better, *worse]):
         d = paired_differences(better, worse)
@@ -245,7 +247,8 @@ def verdict(
             binomial = float(math.sqrt(var.sum()) / len(d))
             se = binomial if se is None else max(se, binomial)
         holds = mean > margin and (se is None or mean > 2 * se)
-        numbers |= {"mean": mean, "sd": sd, "se": se}
+        ci = t_interval(d)  # beside the verdict: its test is the margin and 2 SE
+        numbers |= {"mean": mean, "sd": sd, "se": se, "t_interval": None if ci is None else list(ci)}
     return Verdict(
         claim=claim,
         threshold=f"mean paired difference above {margin:g}",
@@ -321,6 +324,8 @@ def _claim_text(v: dict) -> str:
         return "n/a"
     n = v["numbers"]
     spread = "one seed" if n["se"] is None else f"SE {n['se']:.3f}"
+    if n.get("t_interval"):
+        spread += ", 95 % t [{:+.3f}, {:+.3f}]".format(*n["t_interval"])
     said = word(v["holds"], "**holds**", "does not hold")
     return f"{said}: {n['mean']:+.3f} ({spread}; {v.get('provenance', BEFORE)})"
 

@@ -130,6 +130,37 @@ def _pose_features(poses: np.ndarray) -> np.ndarray:
     return np.stack([q[:, 0], q[:, 1], np.cos(q[:, 2]), np.sin(q[:, 2])], axis=1)
 
 
+def run_of(rep, variant: Variant, world: str, seed: int) -> Path:
+    """Where a variant's run lives: Rec-SMA's beside the paper's kinds in the reproduction's
+    runs folder (``rep.run_dir``, where ``rl`` reads every encoder), an ablation's under
+    ``OUT/memory/runs/{variant}/``."""
+    if variant.name == MAIN:
+        return Path(rep.run_dir(world, REC_SMA, seed))
+    return Path(rep.out) / "memory" / "runs" / variant.name / run_name(world, REC_SMA, seed)
+
+
+def train_jobs(rep, worlds, variants=VARIANTS) -> tuple[list[Job], dict]:
+    """The training jobs of Rec-SMA on ``worlds`` and of its ablations on ``ABLATED_ON`` (those
+    of ``variants``), every seed, but the runs kept; and every run's folder by (variant,
+    world, seed). The one door to Rec-SMA's runs: ``--experiment homing`` trains its
+    encoders through it, and a run either experiment made serves both."""
+    jobs, runs = [], {}
+    for variant in variants:
+        for w in worlds if variant.name == MAIN else [w for w in worlds if w == ABLATED_ON]:
+            data_sha = file_hash(rep.data[w])
+            config = _config(rep, variant)
+            for seed in range(rep.seeds):
+                out = runs[(variant.name, w, seed)] = run_of(rep, variant, w, seed)
+                if (out / "result.json").exists() and run_matches(
+                    out, data_sha, {**config, "seed": seed}
+                ):
+                    continue
+                out.parent.mkdir(parents=True, exist_ok=True)
+                entry = (str(rep.data[w]), seed, str(out), data_sha)
+                jobs.append(Job(f"train {variant.name} {out.name}", train_job, ([entry], config)))
+    return jobs, runs
+
+
 def run(ctx) -> dict:
     """Fresh databases, Rec-SMA and its ablations trained, every representation probed."""
     from sensorimotor.pipeline.stages import data_key
@@ -149,21 +180,8 @@ def run(ctx) -> dict:
         key = stage_key({"fresh": data_key(w, steps), "seed": FRESH_SEED})
         if read_key(fresh[w].with_suffix(".json")) != key or not fresh[w].exists():
             jobs.append(Job(f"fresh {w}", data_job, (w, steps, FRESH_SEED, str(fresh[w]), key)))
-    runs: dict[tuple[str, str, int], Path] = {}
-    for variant in VARIANTS:
-        for w in worlds if variant.name == MAIN else [w for w in worlds if w == ABLATED_ON]:
-            data_sha = file_hash(rep.data[w])
-            for seed in range(rep.seeds):
-                out = d / "runs" / variant.name / run_name(w, REC_SMA, seed)
-                runs[(variant.name, w, seed)] = out
-                config = _config(rep, variant)
-                if (out / "result.json").exists() and run_matches(
-                    out, data_sha, {**config, "seed": seed}
-                ):
-                    continue
-                out.parent.mkdir(parents=True, exist_ok=True)
-                entry = (str(rep.data[w]), seed, str(out), data_sha)
-                jobs.append(Job(f"train {variant.name} {out.name}", train_job, ([entry], config)))
+    train, runs = train_jobs(rep, worlds)
+    jobs += train
     jobs.sort(key=lambda job: not job.name.startswith("train"))  # the long ones first
     ctx.run(jobs)
 

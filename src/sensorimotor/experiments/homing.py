@@ -1,0 +1,186 @@
+"""Does an agent need a memory to come back? ``reproduce --experiment homing`` (issue 37).
+
+The ``homing`` task (``envs.tasks``, DESIGN.md "homing"): the robot starts in a named room of
+Rooms1, is driven out by the paper's random behaviour until it is well inside another room,
+then has 200 steps to be back in the start room; nothing in the readings says which room that
+was. The same PPO as ``--experiment rl`` (``rl.runner.run_grid``, standardised features, RL
+seed k on encoder seed k) learns it from ``FEATURES``: the oracle ``pose+raw`` (the pose, the
+readings and the start: the ceiling), the raw readings (no memory), Rec-SM (the paper's memory,
+which never reads the commands: the strongest baseline with a memory), Rec-SMA (its memory
+reads them; trained here through ``memory.train_jobs``, the runs ``--experiment memory`` uses)
+and an untrained encoder. The thresholds are the issue's, set before any homing agent was
+trained (``THRESHOLDS``); the scores are the stochastic policy's success (``rl.results``'s
+headline), each with its Student-t interval below 10 seeds.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from sensorimotor.errors import InputError
+from sensorimotor.files import file_hash
+from sensorimotor.jobs.cache import stage_key
+from sensorimotor.learn.models import REC_SM, REC_SMA
+from sensorimotor.learn.runs import count
+from sensorimotor.report.blocks import Block, h, image, p, table
+from sensorimotor.rl.results import HEADLINE, MIN_SEEDS, fmt_ci, paired_difference
+from sensorimotor.stats import BEFORE, Verdict
+from sensorimotor.version import __version__
+
+TASK = "homing"
+WORLD = "rooms1"
+ORACLE = "pose+raw"
+FEATURES = (ORACLE, "raw", REC_SM, REC_SMA, "random")
+BASELINES = ("raw", REC_SM)  # the strongest of these is the baseline beside Rec-SMA
+THRESHOLDS = {"rec_sma": 0.8, "of_oracle": 0.1, "raw": 0.4}  # issue 37's "done when"
+WHERE = "issue 37 (a map that finds the rooms, an agent that needs a memory), before any agent"
+
+
+@dataclass(frozen=True)
+class Plan:
+    """Each agent's steps and evaluations at one reproduction scale."""
+
+    steps: int
+    eval_every: int
+    eval_episodes: int
+    ppo: dict | None = None
+
+
+PLANS = {  # quick: the pilot's budget (2 seeds, 60,000 steps); paper: set before its first run
+    "smoke": Plan(512, 512, 10, {"n_steps": 64, "batch_size": 64, "n_epochs": 2}),
+    "quick": Plan(60_000, 20_000, 50),
+    "paper": Plan(200_000, 50_000, 50),
+}
+
+
+def check(rep) -> None:
+    """Refuse, before any stage, a reproduction without Rooms1 or without the ``[rl]`` extra."""
+    from sensorimotor.rl import check_extra
+
+    if WORLD not in tuple(rep.worlds):
+        raise InputError(f"experiment homing: needs the encoders trained on {WORLD}; add it to --worlds")
+    check_extra()
+
+
+def config(rep):
+    """The ``RLConfig`` of the grid: encoders from the reproduction's runs folder."""
+    from sensorimotor.rl.runner import RLConfig
+
+    plan = PLANS.get(rep.scale.name, PLANS["quick"])
+    return RLConfig(
+        task=TASK, world=WORLD, features=FEATURES, seeds=rep.seeds, steps=plan.steps,
+        runs=str(Path(rep.run_dir(WORLD, REC_SM, 0)).parent), trained_on=WORLD,
+        eval_every=plan.eval_every, eval_episodes=plan.eval_episodes,
+        ppo={**RLConfig().ppo, **(plan.ppo or {})},
+    )  # fmt: skip
+
+
+def grid_key(rep, cfg) -> str:
+    """A short hash of what the agents depend on: settings, encoder weights, version."""
+    weights = {
+        f"{kind}__s{seed}": file_hash(Path(rep.run_dir(WORLD, kind, seed)) / "model.pt")
+        for kind in (REC_SM, REC_SMA)
+        for seed in range(cfg.seeds)
+    }
+    described = {"config": {**cfg.agent_config(), "runs": None}, "features": list(cfg.features),
+                 "seeds": cfg.seeds, "weights": weights, "version": __version__}  # fmt: skip
+    return stage_key(described)
+
+
+def run(ctx) -> dict:
+    """Rec-SMA trained where missing, then the grid (cached); its numbers and verdicts."""
+    from sensorimotor.experiments.memory import VARIANTS, train_jobs
+    from sensorimotor.jobs.backend import run_all
+    from sensorimotor.rl.runner import run_grid
+
+    rep = ctx.rep
+    check(rep)
+    jobs, _ = train_jobs(rep, [WORLD], VARIANTS[:1])
+    for seed in range(rep.seeds):
+        if not Path(rep.run_dir(WORLD, REC_SM, seed), "model.pt").is_file():
+            raise InputError(f"experiment homing: no {REC_SM} run at {rep.run_dir(WORLD, REC_SM, seed)}")
+    ctx.run(jobs)
+    cfg = config(rep)
+    folder = ctx.dir / f"{TASK}__{grid_key(rep, cfg)}"
+
+    def run_agents(todo):
+        ctx.log(f"homing: {len(todo)} agents to train")
+        return run_all(ctx.run_jobs, ctx.workers, todo, ctx.progress)
+
+    rl = run_grid(cfg, folder, run_agents=run_agents)
+    for r in rl["results"].values():
+        del r["curve"]  # in the folder's rl.json and figure
+    return {
+        "headline": HEADLINE,
+        "folder": folder.relative_to(rep.out).as_posix(),
+        "rl": rl,
+        "verdicts": [v.to_dict() for v in verdicts(rl)],
+    }
+
+
+def verdicts(rl: dict) -> list[Verdict]:
+    """The issue's three goals on the headline score, each a ``Verdict`` (None below
+    ``MIN_SEEDS`` seeds): Rec-SMA at least 0.8, within 0.1 of the oracle, raw at most 0.4."""
+    res, t = rl["results"], THRESHOLDS
+    judged = rl["seeds"] >= MIN_SEEDS
+    test = (f"mean final success of the stochastic policy over {count(rl['seeds'], 'seed')}, "
+            f"{rl['eval_episodes']} episodes each; Student-t 95 % interval below 10 seeds")  # fmt: skip
+    sma, raw, oracle = (res[f][HEADLINE] for f in (REC_SMA, "raw", ORACLE))
+    gap = paired_difference(oracle["per_seed"], sma["per_seed"])
+    rows = [
+        ("Rec-SMA's agents come home", f"success >= {t['rec_sma']}", fmt_ci(sma),
+         sma["mean"] >= t["rec_sma"]),
+        ("Rec-SMA's agents come home nearly as often as the oracle's",
+         f"oracle minus Rec-SMA <= {t['of_oracle']}, paired by seed", fmt_ci(gap, "+"),
+         gap["mean"] <= t["of_oracle"]),
+        ("an agent without memory does not", f"raw's success <= {t['raw']}", fmt_ci(raw),
+         raw["mean"] <= t["raw"]),
+    ]  # fmt: skip
+    return [
+        Verdict(claim, threshold, test, numbers, holds if judged else None, BEFORE, WHERE)
+        for claim, threshold, numbers, holds in rows
+    ]
+
+
+def _baseline(res: dict) -> str:
+    """The strongest of ``BASELINES`` by mean headline success."""
+    return max(BASELINES, key=lambda f: res[f][HEADLINE]["mean"])
+
+
+HEADER = ["features", "success, stochastic (headline)", "IQM", "success, deterministic"]
+
+
+def section(rep, found: dict) -> list[Block]:
+    """The homing table (ceiling and strongest baseline marked), the curves, the verdicts."""
+    rl = found["rl"]
+    res = rl["results"]
+    base = _baseline(res)
+    label = {ORACLE: f"{ORACLE} (ceiling)", base: f"{base} (strongest baseline)"}
+    rows = [
+        [label.get(f, f), fmt_ci(r[HEADLINE]), f"{r[HEADLINE]['iqm']:.2f}", fmt_ci(r["success"])]
+        for f, r in res.items()
+    ]
+    blocks = [
+        h(2, "Does an agent need a memory to come back? (homing)"),
+        p(
+            f"The robot starts in a named room of {rl['world']}, is driven out by the paper's "
+            "random behaviour until it is inside another room, then has 200 steps to be back "
+            "in the start room; the readings do not say which room that was. PPO on each "
+            f"feature set ({count(rl['seeds'], 'seed')}, {rl['steps']:,} steps each, features "
+            "standardised): the oracle pose+raw knows the pose and the start (the ceiling); "
+            "raw has no memory; Rec-SM's memory reads only the readings; Rec-SMA's reads the "
+            "commands too (issue 32); random is an untrained encoder. Final success rate, "
+            f"stochastic policy (headline) and deterministic, from `{found['folder']}/rl.json`."
+        ),
+        table(HEADER, rows),
+        image(
+            Path(rep.out) / found["folder"] / "rl.png",
+            "homing: learning curves (solid: deterministic, dashed: stochastic) and final success",
+        ),
+    ]
+    for v in found["verdicts"]:
+        said = {True: "holds", False: "does NOT hold", None: "not judged"}[v["holds"]]
+        text = f"{v['claim']} ({v['threshold']}): {said}, {v['numbers']}."
+        blocks.append(p(f"{text} Provenance: {v['provenance']} ({v['where']})."))
+    return blocks
