@@ -1,4 +1,5 @@
-"""The report section of the full Rooms1 grid, from its three rl.json (as reproduce writes it)."""
+"""The report section of a Rooms1 grid from the rl.json of each task folder present (as
+reproduce writes it): ``python section.py FOLDER`` writes ``FOLDER/section.md``."""
 
 import json
 import sys
@@ -10,19 +11,15 @@ from sensorimotor.report.blocks import to_markdown
 
 out = Path(sys.argv[1])
 tasks, steps = {}, {}
-for task in rl_stage.TASKS:
+for task in rl_stage.tasks():
+    if not (out / task / "rl.json").is_file():
+        continue
     rl = json.loads((out / task / "rl.json").read_text())
     for r in rl["results"].values():
         del r["curve"]
     tasks[task] = {"folder": task, "rl": rl}
     steps[task] = rl["steps"]
-found = {
-    "headline": rl["headline"],
-    "world": "rooms1",
-    "seeds": rl["seeds"],
-    "steps": steps,
-    "eval_episodes": rl["eval_episodes"],
-    "tasks": tasks,
-}
+found = {"headline": rl["headline"], "world": "rooms1", "seeds": rl["seeds"], "steps": steps,
+         "eval_episodes": rl["eval_episodes"], "tasks": tasks}  # fmt: skip
 blocks = rl_stage.section(SimpleNamespace(out=out), found)
 (out / "section.md").write_text(to_markdown(blocks, out))
