@@ -49,7 +49,8 @@ def test_a_verdict_records_its_margin_set_before_the_data_as_strict_json():
     json.dumps(v, allow_nan=False)
     assert v["claim"] == "the map predicts"
     assert v["threshold"] == "mean paired difference above 0.05"
-    want = {"mean": pytest.approx(0.1), "sd": 0.0, "se": None, "n": 1, "margin": 0.05}
+    want = {"mean": pytest.approx(0.1), "sd": 0.0, "se": None, "n": 1, "margin": 0.05,
+            "t_interval": None}  # one seed: no interval
     assert v["numbers"] == want
     assert v["provenance"] == BEFORE
     assert "MARGINS" in v["where"]
