@@ -1,4 +1,5 @@
-"""Shared fixtures: small real databases, the real command line in a subprocess, one thread."""
+"""Shared fixtures: small real databases, the real command line in a subprocess, one thread;
+the longest modules collected first."""
 
 from __future__ import annotations
 
@@ -11,6 +12,15 @@ import torch
 
 from sensorimotor.sim.database import generate, save_database
 from sensorimotor.sim.world import load_world
+
+LONGEST_FIRST = ("tests/pipeline/test_paper.py", "tests/jobs/test_ray.py")
+"""Modules of minutes (a whole reproduction, a Ray cluster): collected first, so that with
+``--dist loadscope`` (pyproject) each worker starts on one of them and the short modules fill
+the rest, instead of one of them starting last on one worker while the other idles."""
+
+
+def pytest_collection_modifyitems(items: list) -> None:
+    items.sort(key=lambda item: item.nodeid.split("::")[0] not in LONGEST_FIRST)  # stable
 
 
 def run_cli(*args: str | Path, cwd: Path | None = None, timeout: float = 600):

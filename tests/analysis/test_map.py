@@ -286,7 +286,8 @@ def test_cli_map_writes_strict_json_graphml_and_figures(cli, rooms1_db_path, tmp
         assert set(m["localisation"][key]) == {"map", "cells", "chance"}
     assert m["rooms"]["names"] == ["southwest", "northwest", "east"]
     assert -1 <= m["rooms"]["adjusted_rand"] <= 1
-    assert m["planning"]["pairs"] == 2
+    assert (m["planning"]["pairs"], m["planning"]["moves"]) == (2, "paper")
+    assert top["planning"]["moves"] == "paper"
     for rate in m["planning"]["success"].values():
         assert rate in (0.0, 0.5, 1.0)
     assert m["settings"]["contexts"] == N_CONTEXTS == 2  # the default, chosen on validation

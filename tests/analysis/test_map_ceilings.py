@@ -4,14 +4,16 @@ models and the recurrent net."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
-from sensorimotor.analysis.map import ceilings
+from sensorimotor.analysis.map import ceilings, planning
 from sensorimotor.analysis.map.baselines import rnn_bits
 from sensorimotor.analysis.map.cells import _histories, baseline_bits, ngram_bits, ngram_probs
 from sensorimotor.analysis.map.mapping import Steps
-from sensorimotor.analysis.map.planning import start_goal_pairs
+from sensorimotor.analysis.map.planning import Moves, start_goal_pairs
 from sensorimotor.sim.core import DEFAULT_LAYOUT
 from sensorimotor.sim.database import generate
 from sensorimotor.sim.world import load_world, world_from_dict
@@ -73,6 +75,59 @@ def test_the_true_pose_planner_reaches_goals_on_the_map_planners_pairs():
     # the pairs are the map planner's: a function of the seed alone
     a, b = start_goal_pairs(world, 0, 3), start_goal_pairs(world, 0, 3)
     assert all(np.array_equal(x[0], y[0]) and x[1] == y[1] for x, y in zip(a, b, strict=True))
+
+
+def _spy(module, monkeypatch) -> list:
+    """Record every (heading, d, r) that ``module`` executes through ``apply_motor``."""
+    seen, real = [], module.apply_motor
+
+    def spy(x, y, heading, d, r):
+        seen.append((heading, d, r))
+        return real(x, y, heading, d, r)
+
+    monkeypatch.setattr(module, "apply_motor", spy)
+    return seen
+
+
+def _on_the_lattice(seen) -> None:
+    turn = math.pi / 6
+    allowed = [(0.9, 0.0), (0.0, turn), (0.0, -turn)] + [(0.0, math.pi + k * turn) for k in (-1, 0, 1)]
+    for heading, d, r in seen:
+        assert min(math.hypot(d - a, r - b) for a, b in allowed) < 1e-12, (d, r)
+        assert abs(heading / turn - round(heading / turn)) < 1e-9, heading
+
+
+def test_on_a_lattice_database_the_planners_move_as_the_lattice_behaviour(monkeypatch):
+    """The true-pose planner, the map's planner and its random baseline execute the lattice's
+    own commands from headings on its lattice (``planning.Moves``), and the true pose still
+    reaches its goals; the paper's moves are not lattice commands."""
+    world = load_world("rooms1")
+    seen = _spy(ceilings, monkeypatch)
+    plans = ceilings.true_pose_planning(world, DEFAULT_LAYOUT, 0, 6, moves=Moves("lattice"))
+    assert (plans["success"], plans["moves"]) == (1.0, "lattice")
+    assert len(seen) > 50
+    _on_the_lattice(seen)
+    walked = _spy(planning, monkeypatch)
+    goal, start, _ = start_goal_pairs(world, 0, 1)[0]
+    for use_map in (False, True):  # the random baseline, then the map's planner (a 1-cell map)
+        model = _one_cell_map()
+        kmeans = type("K", (), {"cluster_centers_": np.zeros((1, 5))})()
+        planning.run_episode(world, DEFAULT_LAYOUT, lambda: lambda z: np.zeros(5), kmeans, model,
+                             np.zeros(model.T.shape[1]), goal, start, np.random.default_rng(0),
+                             budget=60, use_map=use_map, moves=Moves("lattice"))  # fmt: skip
+    assert len(walked) > 60
+    _on_the_lattice(walked)
+    paper = [Moves().command(a, np.random.default_rng(a)) for a in planning.MOVING]
+    assert all(0 <= d < 1 and abs(r) <= math.pi / 6 for d, r in paper)
+    assert paper != [planning.LATTICE_COMMANDS[a] for a in planning.MOVING]
+
+
+def _one_cell_map():
+    """A cloned HMM of one cell, two clones, uniform transitions under every action."""
+    from sensorimotor.analysis.map.chmm import CloneHMM
+
+    T = np.full((4, 2, 2), 0.5)
+    return CloneHMM(T, 2, np.ones(2, dtype=bool), T, {}, T)
 
 
 def _second_order(n, k, rng):

@@ -10,6 +10,7 @@ from types import SimpleNamespace
 import pytest
 
 from sensorimotor import experiments as ex
+from sensorimotor.analysis.map import hmm
 from sensorimotor.errors import InputError
 from sensorimotor.experiments import map as map_stage
 from sensorimotor.jobs.workers import run_jobs
@@ -124,6 +125,7 @@ def test_run_maps_raw_and_each_run_caches_them_and_the_section_reads_them(
     tiny_rep, monkeypatch, one_thread
 ):
     monkeypatch.setattr(map_stage, "PAIRS", {"tiny": 2})
+    monkeypatch.setattr(hmm, "HMM_ITERS", 2)  # the plain HMM's EM: tested in test_map_ceilings
     fitted: list[str] = []
 
     def counting(jobs, workers, progress):

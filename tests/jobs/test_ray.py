@@ -163,7 +163,7 @@ def test_rl_agents_as_ray_tasks_are_those_trained_here(cluster, tmp_path, one_th
     tiny = {"n_steps": 32, "batch_size": 64, "n_epochs": 1, "learning_rate": 3e-4,
             "gamma": 0.99, "gae_lambda": 0.95, "ent_coef": 0.0}  # fmt: skip
     config = RLConfig("corner", "rooms1", ("raw",), 2, 64, str(runs), eval_every=64,
-                      eval_episodes=2, n_envs=2, ppo=tiny)  # fmt: skip
+                      eval_episodes=2, n_envs=2, stats_steps=64, ppo=tiny)  # fmt: skip
     run_grid(config, tmp_path / "here")
     run_grid(
         config,

@@ -41,11 +41,11 @@ def _as_in_a_terminal() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
-def _start_until_a_checkpoint(out: Path, stderr) -> subprocess.Popen:
-    """Start the smoke reproduction in its own process group; return once a training has
-    written its first checkpoint, with the run still going."""
+def _start_until_a_checkpoint(out: Path, stderr, worlds: str | None = None) -> subprocess.Popen:
+    """Start the smoke reproduction (of ``worlds``, default all) in its own process group;
+    return once a training has written its first checkpoint, with the run still going."""
     proc = subprocess.Popen(
-        _command(out),
+        _command(out, *(("--worlds", worlds) if worlds else ())),
         stdout=subprocess.DEVNULL,
         stderr=stderr,
         text=True,
@@ -102,19 +102,6 @@ def test_smoke_report_has_every_stage_and_a_full_table(smoke):
 
 
 @pytest.mark.slow  # the whole pipeline, end to end
-def test_square_alone_trains_only_square_and_gives_the_same_table_one(smoke, tmp_path):
-    """`--worlds square`: the paper's own Table I (trained on Square, tested on all three
-    worlds) without training on the other two, the same numbers as the full reproduction."""
-    out = tmp_path / "square"
-    proc = _reproduce(out, "--worlds", "square")
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    assert {p.name.split("__")[0] for p in (out / "runs").iterdir()} == {"square"}
-    assert sorted(p.stem for p in (out / "data").glob("*.npz")) == ["rooms1", "rooms2", "square"]
-    assert _table_numbers(out) == {"square": _table_numbers(smoke)["square"]}
-    assert "Table I ordering (trained on Square)" in (out / "report.md").read_text()
-
-
-@pytest.mark.slow  # the whole pipeline, end to end
 def test_rerun_uses_the_cache_and_a_deleted_stage_is_redone_alone(smoke):
     before = _table_numbers(smoke)
     stamp = {p: p.stat().st_mtime_ns for p in (smoke / "runs").rglob("model.pt")}
@@ -148,22 +135,28 @@ def test_rerun_uses_the_cache_and_a_deleted_stage_is_redone_alone(smoke):
 
 
 @pytest.mark.slow  # the whole pipeline, end to end
-def test_killed_during_training_resumes_to_the_same_table(smoke, tmp_path):
-    out = tmp_path / "killed"
-    proc = _start_until_a_checkpoint(out, stderr=subprocess.DEVNULL)
+def test_square_alone_killed_during_training_resumes_to_the_same_table_one(smoke, tmp_path):
+    """`--worlds square`, killed during training and run again: the paper's own Table I
+    (trained on Square, tested on all three worlds) without training on the other two, the
+    same numbers as the full reproduction's."""
+    out = tmp_path / "square"
+    proc = _start_until_a_checkpoint(out, stderr=subprocess.DEVNULL, worlds="square")
     proc.send_signal(signal.SIGKILL)  # the parent only: workers must die with it
     proc.wait()
     time.sleep(1.0)
     assert not (out / "report.md").exists()
-    again = _reproduce(out)
+    again = _reproduce(out, "--worlds", "square")
     assert again.returncode == 0, again.stderr[-3000:]
-    assert _table_numbers(out) == _table_numbers(smoke)
+    assert {p.name.split("__")[0] for p in (out / "runs").iterdir()} == {"square"}
+    assert sorted(p.stem for p in (out / "data").glob("*.npz")) == ["rooms1", "rooms2", "square"]
+    assert _table_numbers(out) == {"square": _table_numbers(smoke)["square"]}
+    assert "Table I ordering (trained on Square)" in (out / "report.md").read_text()
 
 
 @pytest.mark.slow  # the whole pipeline, end to end
 def test_ctrl_c_stops_every_worker_at_once_and_says_how_to_go_on(tmp_path):
     out = tmp_path / "interrupted"
-    proc = _start_until_a_checkpoint(out, stderr=subprocess.PIPE)
+    proc = _start_until_a_checkpoint(out, stderr=subprocess.PIPE, worlds="square")
     os.killpg(proc.pid, signal.SIGINT)  # as a terminal's Ctrl-C: the parent and its workers
     t0 = time.time()
     _, err = proc.communicate(timeout=60)

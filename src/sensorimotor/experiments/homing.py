@@ -19,14 +19,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from sensorimotor.errors import InputError
-from sensorimotor.files import file_hash
-from sensorimotor.jobs.cache import stage_key
+from sensorimotor.experiments.rl import grid_key
 from sensorimotor.learn.models import REC_SM, REC_SMA
 from sensorimotor.learn.runs import count
 from sensorimotor.report.blocks import Block, h, image, p, table
 from sensorimotor.rl.results import HEADLINE, MIN_SEEDS, fmt_ci, paired_difference
 from sensorimotor.stats import BEFORE, Verdict
-from sensorimotor.version import __version__
 
 TASK = "homing"
 WORLD = "rooms1"
@@ -76,18 +74,6 @@ def config(rep):
     )  # fmt: skip
 
 
-def grid_key(rep, cfg) -> str:
-    """A short hash of what the agents depend on: settings, encoder weights, version."""
-    weights = {
-        f"{kind}__s{seed}": file_hash(Path(rep.run_dir(WORLD, kind, seed)) / "model.pt")
-        for kind in (REC_SM, REC_SMA)
-        for seed in range(cfg.seeds)
-    }
-    described = {"config": {**cfg.agent_config(), "runs": None}, "features": list(cfg.features),
-                 "seeds": cfg.seeds, "weights": weights, "version": __version__}  # fmt: skip
-    return stage_key(described)
-
-
 def run(ctx) -> dict:
     """Rec-SMA trained where missing, then the grid (cached); its numbers and verdicts."""
     from sensorimotor.experiments.memory import VARIANTS, train_jobs
@@ -102,7 +88,7 @@ def run(ctx) -> dict:
             raise InputError(f"experiment homing: no {REC_SM} run at {rep.run_dir(WORLD, REC_SM, seed)}")
     ctx.run(jobs)
     cfg = config(rep)
-    folder = ctx.dir / f"{TASK}__{grid_key(rep, cfg)}"
+    folder = ctx.dir / f"{TASK}__{grid_key(cfg)}"
 
     def run_agents(todo):
         ctx.log(f"homing: {len(todo)} agents to train")

@@ -158,13 +158,15 @@ def configs(rep) -> dict:
 
 
 def grid_key(config) -> str:
-    """A short hash of what a task's agents depend on: their settings, every encoder's
-    weights (by bytes), the package version."""
-    from sensorimotor.rl.features import run_folder
+    """A short hash of what a grid's agents depend on: their settings, the weights (by bytes)
+    of every trained encoder among ``config.features``, the package version (``homing``'s
+    grid too)."""
+    from sensorimotor.rl.features import feature_sets, run_folder
 
+    sets = feature_sets()
     weights = {
-        f"{model}__s{seed}": file_hash(run_folder(config.runs, WORLD, model, seed) / "model.pt")
-        for model in encoders()
+        f"{kind}__s{seed}": file_hash(run_folder(config.runs, config.trained_on, kind, seed) / "model.pt")
+        for kind in (sets[f].kind for f in config.features if sets[f].trained)
         for seed in range(config.seeds)
     }
     described = {

@@ -26,7 +26,8 @@
   actions and reflex (``planning.run_episode``): a reading below 1 forces the behaviour's
   turn-around, otherwise the moving action (right, straight, left) whose heading after the
   step points at the lowest distance ``LOOK`` units ahead of the expected next position,
-  executed as ``planning._command`` draws it. Same start/goal pairs as the map's planner
+  executed as the map's planner executes it (``planning.Moves``: in the regime of the behaviour
+  that recorded the database). Same start/goal pairs as the map's planner
   (``planning.start_goal_pairs``), same budget and goal radius.
 """
 
@@ -41,15 +42,14 @@ from sensorimotor.analysis.map.planning import (
     BUDGET,
     GOAL_RADIUS,
     MOVING,
-    R_RANGE,
-    _command,
+    PAPER_MOVES,
+    Moves,
     start_goal_pairs,
 )
 from sensorimotor.sim.core import (
     TURN_THRESHOLD,
     SensorLayout,
     apply_motor,
-    behaviour,
     read_sensors,
 )
 from sensorimotor.sim.world import World, point_segment_distance
@@ -312,13 +312,14 @@ def true_pose_episode(
     start: tuple[float, float, float],
     rng: np.random.Generator,
     budget: int = BUDGET,
+    moves: Moves = PAPER_MOVES,
 ) -> int | None:
     """Steps to the goal (None if not reached within ``budget``) of the true-pose planner
     (module docstring) from ``start``, ``distance`` (cells,) the grid's distance to the goal."""
     far = np.where(np.isfinite(distance), distance, np.nanmax(np.where(np.isfinite(distance),
                    distance, np.nan)) + 1e3)  # fmt: skip
-    x, y, heading = start
-    mids = [0.5 * (R_RANGE[a][0] + R_RANGE[a][1]) for a in MOVING]
+    x, y, heading = start[0], start[1], moves.heading(start[2])
+    means = [moves.expected(a) for a in MOVING]  # (d, r): the step, then the new heading
     for t in range(budget + 1):
         if math.hypot(x - goal_xy[0], y - goal_xy[1]) <= GOAL_RADIUS:
             return t
@@ -326,21 +327,23 @@ def true_pose_episode(
             return None
         readings = read_sensors(world, np.array([x, y, heading]), layout)[0]
         if readings.min() < TURN_THRESHOLD:
-            d, r = behaviour(readings.min(), rng.random(), rng.random())
+            d, r = moves.walk(readings.min(), rng)
         else:
-            nx0, ny0 = x + 0.5 * math.cos(heading), y + 0.5 * math.sin(heading)  # E[d] = 0.5
             ahead = [
-                far[_cell_of((nx0 + LOOK * math.cos(heading + m), ny0 + LOOK * math.sin(heading + m)),
-                             shape)]
-                for m in mids
+                far[_cell_of((x + d * math.cos(heading) + LOOK * math.cos(heading + r),
+                              y + d * math.sin(heading) + LOOK * math.sin(heading + r)), shape)]
+                for d, r in means
             ]  # fmt: skip
-            d, r = _command(MOVING[int(np.argmin(np.asarray(ahead) + 1e-9 * rng.random(3)))], rng)
+            action = MOVING[int(np.argmin(np.asarray(ahead) + 1e-9 * rng.random(3)))]
+            d, r = moves.command(action, rng)
         x, y, heading = apply_motor(x, y, heading, d, r)
+        heading = moves.heading(heading)
     return None
 
 
 def true_pose_planning(
-    world: World, layout: SensorLayout, seed: int, n_pairs: int, budget: int = BUDGET
+    world: World, layout: SensorLayout, seed: int, n_pairs: int, budget: int = BUDGET,
+    moves: Moves = PAPER_MOVES,
 ) -> dict:
     """Success rate and median steps of the true-pose planner on the map planner's start/goal
     pairs (``planning.start_goal_pairs``: the same seed gives the same pairs), each episode's
@@ -352,7 +355,8 @@ def true_pose_planning(
     for goal_xy, start, seeds in start_goal_pairs(world, seed, n_pairs):
         distance = dijkstra(graph, directed=False, indices=_cell_of(goal_xy, shape))
         rng = np.random.default_rng(seeds[0])
-        steps.append(true_pose_episode(world, layout, distance, shape, goal_xy, start, rng, budget))
+        steps.append(true_pose_episode(world, layout, distance, shape, goal_xy, start, rng, budget,
+                                       moves))  # fmt: skip
     done = [s for s in steps if s is not None]
     return {
         "success": len(done) / n_pairs if n_pairs else None,
@@ -361,6 +365,7 @@ def true_pose_planning(
         "budget": budget,
         "resolution": RESOLUTION,
         "clearance": CLEARANCE,
+        "moves": moves.behaviour,
     }
 
 
@@ -382,7 +387,8 @@ def _ceilings(db, world: World, seed: int, pairs: int) -> dict:
     args = (world, db.layout, test.sensors, test.motors, test.poses, sigma)
     with_odo = mcl(*args, odometry=True, seed=seed)
     without = mcl(*args, odometry=False, seed=seed)
-    plans = true_pose_planning(world, db.layout, seed, pairs) if pairs else {"success": None}
+    moves = Moves(db.behaviour)
+    plans = true_pose_planning(world, db.layout, seed, pairs, moves=moves) if pairs else {"success": None}
     return {
         "localisation": {
             "balanced_room_accuracy": with_odo["balanced_room_accuracy"],

@@ -62,6 +62,7 @@ from sensorimotor.analysis.map.planning import (
     GOAL_RADIUS,
     MAX_PAIRS,
     N_PAIRS,
+    Moves,
     encoder_of,
     planning,
 )
@@ -446,7 +447,7 @@ def map_files(
         on_pair = None if progress is None else lambda i, rate: progress("planning pair", i, rate)
         plans, traces = planning(
             world, db.layout, encoder, kmeans, model, state_mean, occupancy, seed, pairs,
-            progress=on_pair,
+            progress=on_pair, moves=Moves(db.behaviour),
         )  # fmt: skip
     metrics = {
         "run": RAW if run == RAW else str(run.path),

@@ -14,22 +14,29 @@ raw readings / range, or the run's ``encode``, recurrent state carried), takes t
   goal after one step is the smallest: ``sum_s alpha(s) sum_s' T[a, s, s'] D(s')``, with
   ``D`` the shortest-path distance to the goal states in the map's graph (edge cost
   ``1 - log max_a T[a, s, s']``, Dijkstra): the plan is re-made from the filter at each step;
-- an action is executed as a command drawn from the behaviour's own range for that bin
-  (``d ~ U(0, 1)``, ``r`` uniform in the bin), so the map's statistics hold.
+- an action is executed as the behaviour that recorded the database would have executed it
+  (``Moves``), so the map's statistics hold: under the paper's behaviour a command drawn from
+  its range for that bin (``d ~ U(0, 1)``, ``r`` uniform in the bin); under the lattice
+  behaviour the lattice's own command (right: turn by -pi/6, straight: forward 0.9, left: turn
+  by +pi/6), from a start heading on the lattice, snapped after each step as it records.
 
-The baseline is the paper's random behaviour (``sim.core.behaviour``) for the same budget from
-the same start; success rate = the fraction of episodes that reach their goal.
+The baseline is the same behaviour's random walk (``sim.core.behaviour``, or the lattice's) for
+the same budget from the same start; success rate = the fraction of episodes that reach their
+goal. The smooth behaviour's commands are planned as the paper's (its turning rate has a state
+the planner does not keep).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from sensorimotor.analysis.map.cells import STRAIGHT
 from sensorimotor.analysis.map.chmm import CloneHMM
 from sensorimotor.errors import InputError
+from sensorimotor.sim.behaviours import LATTICE_STEP, LATTICE_TURN, lattice_behaviour, snap_heading
 from sensorimotor.sim.core import (
     TURN_THRESHOLD,
     SensorLayout,
@@ -37,6 +44,7 @@ from sensorimotor.sim.core import (
     behaviour,
     read_sensors,
     sample_start,
+    wrap_angle,
 )
 from sensorimotor.sim.world import World
 
@@ -47,6 +55,44 @@ GOAL_RADIUS = 4.0
 N_TRACES = 2  # episodes of the map whose trajectories are kept (the figure)
 MOVING = (1, 2, 3)  # right, straight, left (cells.ACTION_NAMES)
 R_RANGE = {1: (-math.pi / 6, -STRAIGHT), 2: (-STRAIGHT, STRAIGHT), 3: (STRAIGHT, math.pi / 6)}
+LATTICE_COMMANDS = {1: (0.0, -LATTICE_TURN), 2: (LATTICE_STEP, 0.0), 3: (0.0, LATTICE_TURN)}
+
+
+@dataclass(frozen=True)
+class Moves:
+    """How the planners move in the regime of the behaviour that recorded the map's database
+    (``Database.behaviour``; module docstring): the command of each moving action, the
+    behaviour's own step (the reflex and the random baseline), its headings."""
+
+    behaviour: str = "paper"
+
+    @property
+    def lattice(self) -> bool:
+        return self.behaviour == "lattice"
+
+    def command(self, action: int, rng: np.random.Generator) -> tuple[float, float]:
+        """The command that executes moving ``action``."""
+        if self.lattice:
+            return LATTICE_COMMANDS[action]
+        lo, hi = R_RANGE[action]
+        return float(rng.random()), float(lo + (hi - lo) * rng.random())
+
+    def expected(self, action: int) -> tuple[float, float]:
+        """The mean command of moving ``action`` (the true-pose planner's look-ahead)."""
+        return LATTICE_COMMANDS[action] if self.lattice else (0.5, 0.5 * sum(R_RANGE[action]))
+
+    def walk(self, min_reading: float, rng: np.random.Generator) -> tuple[float, float]:
+        """The behaviour's own step: the turn-around below TURN_THRESHOLD, else a random move."""
+        if self.lattice:
+            return lattice_behaviour(min_reading, rng.random())
+        return behaviour(min_reading, rng.random(), rng.random())
+
+    def heading(self, heading: float) -> float:
+        """A heading as the behaviour keeps it: on the lattice, snapped to it."""
+        return wrap_angle(snap_heading(heading)) if self.lattice else heading
+
+
+PAPER_MOVES = Moves()
 
 
 def goal_distances(model: CloneHMM, goals: np.ndarray) -> np.ndarray:
@@ -111,11 +157,6 @@ def encoder_of(run, max_range: float):
     return fresh
 
 
-def _command(action: int, rng: np.random.Generator) -> tuple[float, float]:
-    lo, hi = R_RANGE[action]
-    return float(rng.random()), float(lo + (hi - lo) * rng.random())
-
-
 def run_episode(
     world: World,
     layout: SensorLayout,
@@ -129,15 +170,16 @@ def run_episode(
     budget: int = BUDGET,
     use_map: bool = True,
     trace: list | None = None,
+    moves: Moves = PAPER_MOVES,
 ) -> int | None:
     """Steps to the goal (None if not reached within ``budget``) from ``start``; with
-    ``use_map`` the map's planner acts, otherwise the paper's random behaviour. The positions
-    visited are appended to ``trace`` if given."""
+    ``use_map`` the map's planner acts, otherwise the behaviour's random walk (``moves``). The
+    positions visited are appended to ``trace`` if given."""
     C = model.n_clones
     far = np.where(np.isfinite(distances), distances, np.nan)
     far = np.where(np.isnan(far), np.nanmax(far) + 10.0 if np.isfinite(far).any() else 0.0, far)
     after = np.stack([model.T[a] @ far for a in MOVING]) if use_map else None  # (3, S) after a step
-    x, y, heading = start
+    x, y, heading = start[0], start[1], moves.heading(start[2])
     encode = encoder() if use_map else None
     centres = kmeans.cluster_centers_  # (K, D): the nearest is the cell (KMeans.predict)
     alpha = cell = action = None
@@ -150,8 +192,8 @@ def run_episode(
             return None
         readings = read_sensors(world, np.array([x, y, heading]), layout)[0]
         if not use_map:
-            d, r = behaviour(readings.min(), rng.random(), rng.random())
-            x, y, heading = apply_motor(x, y, heading, d, r)
+            x, y, heading = apply_motor(x, y, heading, *moves.walk(readings.min(), rng))
+            heading = moves.heading(heading)
             continue
         new_cell = int(np.argmin(((centres - encode(readings)) ** 2).sum(axis=1)))
         if alpha is None:
@@ -163,12 +205,13 @@ def run_episode(
         cell = new_cell
         if readings.min() < TURN_THRESHOLD:
             action = 0
-            d, r = behaviour(readings.min(), rng.random(), rng.random())
+            d, r = moves.walk(readings.min(), rng)
         else:
             expected = after[:, cell * C : (cell + 1) * C] @ alpha  # (3,)
             action = MOVING[int(np.argmin(expected + 1e-9 * rng.random(3)))]
-            d, r = _command(action, rng)
+            d, r = moves.command(action, rng)
         x, y, heading = apply_motor(x, y, heading, d, r)
+        heading = moves.heading(heading)
     return None
 
 
@@ -197,6 +240,7 @@ def planning(
     n_pairs: int = N_PAIRS,
     budget: int = BUDGET,
     progress=None,
+    moves: Moves = PAPER_MOVES,
 ) -> tuple[dict, list]:
     """Success rates of the map's planner and of the random behaviour over ``n_pairs``
     start/goal pairs (module docstring), and the first N_TRACES of the map's episodes as
@@ -222,6 +266,7 @@ def planning(
                 budget,
                 use_map=name == "map",
                 trace=trace if name == "map" and pair < N_TRACES else None,
+                moves=moves,
             )
             reached[name].append(steps)
         if pair < N_TRACES:
@@ -234,4 +279,5 @@ def planning(
         out["success"][name] = len(done) / n_pairs
         out["median_steps"][name] = float(np.median(done)) if done else None
     out["goal_radius"] = GOAL_RADIUS
+    out["moves"] = moves.behaviour  # whose commands executed the actions
     return out, traces
