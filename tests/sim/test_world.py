@@ -207,6 +207,30 @@ def test_a_polygon_room_holds_what_is_inside_it_and_only_that(tmp_path):
     assert world.room_index(x, y).tolist() == [0, -1, 0, 0]  # the hypotenuse and a vertex count
 
 
+def test_a_rectangle_room_is_the_same_closed_box_by_its_bounds_as_by_the_general_rule(
+    monkeypatch,
+):
+    """The bounds test of an axis-aligned rectangle (every built-in room) answers as the even-odd
+    and on-edge rule does, on random points, its edges, its corners and just off them."""
+    from sensorimotor.sim import world as world_module
+
+    rng = np.random.default_rng(0)
+    for room in (*load_world("rooms2").rooms, *load_world("rooms1").rooms):
+        (x0, y0), (x1, y1) = room.polygon.min(axis=0), room.polygon.max(axis=0)
+        xs = np.concatenate([rng.uniform(-5, 55, 4000), np.repeat([x0, x1], 50),
+                             [x0 - 1e-12, x1 + 1e-12, x0 + 1e-12, x1 - 1e-12, x0, x1]])
+        ys = np.concatenate([rng.uniform(-5, 55, 4000), rng.uniform(y0, y1, 100),
+                             [y0, y1, y0 - 1e-12, y1 + 1e-12, y0, y1]])  # fmt: skip
+        fast = world_module.point_in_polygon(room.polygon, xs, ys)
+        with monkeypatch.context() as m:
+            m.setattr(world_module, "_axis_aligned_box", lambda _: None)  # the general rule
+            general = world_module.point_in_polygon(room.polygon, xs, ys)
+        assert np.array_equal(fast, general), room.name
+        assert fast[-6:].tolist() == [False, False, False, False, True, True]
+    skew = np.array([[0.0, 0.0], [10.0, 1.0], [10.0, 10.0], [0.0, 10.0]])  # not a box: the rule
+    assert world_module._axis_aligned_box(skew) is None
+
+
 def test_rooms_travel_with_a_custom_worlds_database_but_not_a_built_in_ones(tmp_path):
     path = tmp_path / "two.toml"
     path.write_text(

@@ -231,7 +231,12 @@ def _rooms(rooms, width: float, height: float, fail) -> tuple[Room, ...]:
 def point_in_polygon(polygon: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Whether each point lies inside ``polygon`` (P, 2), by the even-odd rule: a ray from the
     point towards +x crosses the boundary an odd number of times. Points on the boundary
-    count as inside (rooms of a plan share their walls)."""
+    count as inside (rooms of a plan share their walls). An axis-aligned rectangle (every
+    built-in room) is the same closed box, tested by its bounds alone."""
+    box = _axis_aligned_box(polygon)
+    if box is not None:
+        x0, y0, x1, y1 = box
+        return (x0 <= x) & (x <= x1) & (y0 <= y) & (y <= y1)
     inside = np.zeros(np.shape(x), dtype=bool)
     on_edge = np.zeros(np.shape(x), dtype=bool)
     for (x0, y0), (x1, y1) in zip(polygon, np.roll(polygon, -1, axis=0), strict=True):
@@ -244,6 +249,19 @@ def point_in_polygon(polygon: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.nd
         within &= (np.minimum(y0, y1) <= y) & (y <= np.maximum(y0, y1))
         on_edge |= within & (np.abs(cross) <= 1e-9 * max(1.0, abs(x1 - x0) + abs(y1 - y0)))
     return inside | on_edge
+
+
+def _axis_aligned_box(polygon: np.ndarray) -> tuple[float, float, float, float] | None:
+    """(x0, y0, x1, y1) of ``polygon`` if it is a rectangle with axis-parallel edges, else None.
+    On such a box the even-odd rule and the on-edge test above give the closed box exactly: a
+    point off a vertical edge by any amount fails that edge's x-range, and likewise in y."""
+    if len(polygon) != 4:
+        return None
+    nxt = np.roll(polygon, -1, axis=0)
+    if not np.all((polygon[:, 0] == nxt[:, 0]) != (polygon[:, 1] == nxt[:, 1])):
+        return None  # an edge neither vertical nor horizontal, or of zero length
+    (x0, y0), (x1, y1) = polygon.min(axis=0), polygon.max(axis=0)
+    return float(x0), float(y0), float(x1), float(y1)
 
 
 def load_world(spec: str | Path) -> World:
