@@ -119,7 +119,8 @@ def test_on_a_lattice_database_the_planners_move_as_the_lattice_behaviour(monkey
     _on_the_lattice(walked)
     paper = [Moves().command(a, np.random.default_rng(a)) for a in planning.MOVING]
     assert all(0 <= d < 1 and abs(r) <= math.pi / 6 for d, r in paper)
-    assert paper != [planning.LATTICE_COMMANDS[a] for a in planning.MOVING]
+    assert paper != [Moves("lattice").lattice_command(a) for a in planning.MOVING]
+    assert Moves("grid").lattice_command(3) == (0.0, math.pi / 2)
 
 
 def _one_cell_map():

@@ -94,7 +94,7 @@ def test_smooth_database_records_its_behaviour(tmp_path):
 
 
 def test_an_unknown_behaviour_is_refused():
-    with pytest.raises(InputError, match="--behaviour must be one of paper, smooth, lattice, got 'ou'"):
+    with pytest.raises(InputError, match="--behaviour must be one of paper, smooth, lattice, grid, got 'ou'"):
         sim.rollout(load_world("square"), 10, behaviour="ou")
 
 
@@ -159,7 +159,7 @@ def test_generate_cli_names_and_records_the_behaviour(tmp_path):
     assert "smooth behaviour" in proc.stderr
     assert load_database(tmp_path / "square_s0_smooth.npz").behaviour == "smooth"
     bad = run_cli("generate", "square", "--steps", "500", "--behaviour", "zigzag", cwd=tmp_path)
-    assert_one_line_error(bad, "--behaviour must be one of paper, smooth, lattice, got 'zigzag'")
+    assert_one_line_error(bad, "--behaviour must be one of paper, smooth, lattice, grid, got 'zigzag'")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["square_s0_smooth.npz"]
 
 
@@ -186,3 +186,27 @@ def test_the_lattice_behaviour_keeps_its_headings_and_commands_on_the_lattice():
     stops = np.vstack([p[1:, :2], sim.apply_motor(*p[-1], *run.motors[-1])[:2]])
     assert crossings(p[:, :2], stops, w.segments) == 0
     assert np.ptp(p[:, 0]) > 40  # it roams the world
+
+
+def test_the_grid_behaviour_keeps_its_positions_on_a_grid_of_its_step():
+    """``--behaviour grid``: the lattice with turns of pi/2, so every position the robot reaches
+    lies on ``start + 0.9 Z^2`` (with the lattice's 12 headings they are dense), four headings,
+    seeded, never through a wall, every room reached."""
+    w = load_world("rooms1")
+    run = sim.rollout(w, 20_000, seed=3, behaviour="grid")
+    again = sim.rollout(w, 20_000, seed=3, behaviour="grid", chunk=777)
+    assert np.array_equal(run.poses, again.poses)
+    p = run.poses
+    on_grid = (p[:, :2] - p[0, :2]) / sim.LATTICE_STEP
+    np.testing.assert_allclose(on_grid, np.round(on_grid), atol=1e-6)
+    assert len(np.unique(np.round(on_grid), axis=0)) > 1_000  # many places, each on the grid
+    quarter = p[:, 2] / sim.GRID_TURN
+    np.testing.assert_allclose(quarter, np.round(quarter), atol=1e-9)
+    d, r = run.motors[:, 0], run.motors[:, 1]
+    assert set(np.unique(d)) == {0.0, 0.9}
+    allowed = [0.0, math.pi / 2, -math.pi / 2, math.pi, 1.5 * math.pi]
+    assert all(min(abs(v - a) for a in allowed) < 1e-12 for v in np.unique(r))
+    assert 0.0 < (r > 2.0).mean() < 0.1  # turns around at walls, and is not caught at one
+    stops = np.vstack([p[1:, :2], sim.apply_motor(*p[-1], *run.motors[-1])[:2]])
+    assert crossings(p[:, :2], stops, w.segments) == 0
+    assert set(w.room_index(p[:, 0], p[:, 1])) == {0, 1, 2}

@@ -111,7 +111,8 @@ def generate(
         typer.Option(
             help="paper: the paper's random walk (a new turn each step); smooth: a turning "
             "rate that drifts (Ornstein-Uhlenbeck); lattice: forward 0.9 or a turn of pi/6, "
-            "headings on a lattice. Each turns around near a wall."
+            "headings on a lattice; grid: the same with turns of pi/2, positions on a grid. "
+            "Each turns around near a wall."
         ),
     ] = "paper",
 ) -> None:

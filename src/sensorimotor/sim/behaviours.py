@@ -4,6 +4,7 @@ function of a step's uniforms (and its own state), which ``core._rollout`` calls
     paper    d ~ U(0, 1), r ~ U(-pi/6, pi/6)                          (section IV.C)
     smooth   d ~ U(0, 1), r an Ornstein-Uhlenbeck turning rate          (issue 36)
     lattice  forward LATTICE_STEP, or turn +-pi/6, on a heading lattice (issue 37)
+    grid     the lattice with turns of pi/2: 4 headings, positions on a grid of LATTICE_STEP
 
 Every one turns around when a reading is below ``TURN_THRESHOLD`` (the paper's reflex), so
 that with ``d < 1`` the point robot never reaches a wall.
@@ -20,11 +21,11 @@ from sensorimotor.errors import InputError
 TURN_THRESHOLD = 1.0  # units; the behaviour turns around when a reading is below this
 
 
-BEHAVIOURS = ("paper", "smooth", "lattice")
+BEHAVIOURS = ("paper", "smooth", "lattice", "grid")
 """``generate --behaviour``: a name's index is the id ``_rollout`` takes (``PAPER``, ``SMOOTH``,
-``LATTICE``)."""
-PAPER, SMOOTH, LATTICE = 0, 1, 2
-UNIFORMS = (2, 4, 1)
+``LATTICE``, ``GRID``)."""
+PAPER, SMOOTH, LATTICE, GRID = 0, 1, 2, 3
+UNIFORMS = (2, 4, 1, 1)
 """Uniforms each behaviour draws a step, by id (the paper's two keep their bytes)."""
 PAPER_TURN_SD = math.pi / 6.0 / math.sqrt(3.0)
 """The standard deviation of the paper's turn ``U(-pi/6, pi/6)`` (0.302 rad)."""
@@ -86,27 +87,33 @@ def smooth_behaviour(min_reading, u0, u1, u2, u3, rate):
 
 LATTICE_TURN = math.pi / 6.0
 """The lattice behaviour's turn: headings stay on the 12 multiples of it."""
+GRID_TURN = math.pi / 2.0
+"""The grid behaviour's turn: 4 headings, so that forward steps keep the position on
+``start + LATTICE_STEP Z^2`` (with 12 headings the positions reached are dense: DESIGN.md)."""
 LATTICE_STEP = 0.9
-"""Units the lattice behaviour moves forward: below TURN_THRESHOLD, so it never reaches a wall."""
+"""Units the lattice behaviours move forward: below TURN_THRESHOLD, so they never reach a wall."""
+TURNS = (0.0, 0.0, LATTICE_TURN, GRID_TURN)
+"""By id: the step of each behaviour's heading lattice (0: no lattice)."""
 
 
 @numba.njit(cache=True)
-def lattice_behaviour(min_reading, u0):
+def lattice_behaviour(min_reading, u0, turn):
     """A behaviour whose commands move the robot near-deterministically (issue 37: a map in its
     own regime), from one uniform in [0, 1): forward ``LATTICE_STEP`` (u0 < 1/2), turn
-    ``+LATTICE_TURN`` (u0 < 3/4) or ``-LATTICE_TURN``; the reflex turns around by pi - pi/6,
-    pi or pi + pi/6 (a third each: by pi alone, a robot beside a wall turned from it to it for
-    ever), so the heading stays on the lattice (``core._rollout`` snaps it against rounding)."""
+    ``+turn`` (u0 < 3/4) or ``-turn`` (``TURNS``: pi/6 for the lattice, pi/2 for the grid); the
+    reflex turns around by pi - turn, pi or pi + turn (a third each: by pi alone, a robot beside
+    a wall turned from it to it for ever), so the heading stays on the lattice
+    (``core._rollout`` snaps it against rounding)."""
     if min_reading < TURN_THRESHOLD:
-        return 0.0, math.pi + (math.floor(3.0 * u0) - 1.0) * LATTICE_TURN
+        return 0.0, math.pi + (math.floor(3.0 * u0) - 1.0) * turn
     if u0 < 0.5:
         return LATTICE_STEP, 0.0
     if u0 < 0.75:
-        return 0.0, LATTICE_TURN
-    return 0.0, -LATTICE_TURN
+        return 0.0, turn
+    return 0.0, -turn
 
 
 @numba.njit(cache=True)
-def snap_heading(heading):
-    """``heading`` rounded to the nearest multiple of ``LATTICE_TURN`` (the lattice's drift)."""
-    return round(heading / LATTICE_TURN) * LATTICE_TURN
+def snap_heading(heading, turn):
+    """``heading`` rounded to the nearest multiple of ``turn`` (the lattice's drift)."""
+    return round(heading / turn) * turn

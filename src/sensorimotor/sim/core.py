@@ -22,6 +22,8 @@ from sensorimotor.errors import InputError
 from sensorimotor.sim import MAX_RAYS as _MAX_RAYS
 from sensorimotor.sim.behaviours import (  # noqa: F401 (what walks the robot, read through core too)
     BEHAVIOURS,
+    GRID,
+    GRID_TURN,
     LATTICE,
     LATTICE_STEP,
     LATTICE_TURN,
@@ -32,6 +34,7 @@ from sensorimotor.sim.behaviours import (  # noqa: F401 (what walks the robot, r
     SMOOTH_SD,
     SMOOTH_TAU,
     TURN_THRESHOLD,
+    TURNS,
     UNIFORMS,
     behaviour,
     check_behaviour,
@@ -244,10 +247,12 @@ def _rollout(
     poses,
     kind,
     rate,
+    turn,
 ):
-    """Run ``len(uniforms)`` steps of behaviour ``kind`` (``PAPER``, ``SMOOTH``, ``LATTICE``: its
-    uniforms a step are ``uniforms[t]``, the smooth one's state ``rate``) from pose (x, y,
-    heading), filling the outputs.
+    """Run ``len(uniforms)`` steps of behaviour ``kind`` (``PAPER``, ``SMOOTH``, ``LATTICE``,
+    ``GRID``: its uniforms a step are ``uniforms[t]``, the smooth one's state ``rate``, a
+    lattice's heading step ``turn``, 0 for the others) from pose (x, y, heading), filling the
+    outputs.
 
     Row t: ``poses[t]`` is where ``sensors[t]`` is read; ``motors[t]`` is chosen from it and
     leads to row t + 1. The behaviour reads the paper's five rays, noiseless (a reflex the
@@ -315,8 +320,8 @@ def _rollout(
         if kind == SMOOTH:
             u = uniforms[t]
             d, r, rate = smooth_behaviour(lowest, u[0], u[1], u[2], u[3], rate)
-        elif kind == LATTICE:
-            d, r = lattice_behaviour(lowest, uniforms[t, 0])
+        elif turn > 0.0:  # the lattice, the grid
+            d, r = lattice_behaviour(lowest, uniforms[t, 0], turn)
         else:
             d, r = behaviour(lowest, uniforms[t, 0], uniforms[t, 1])
         motors[t, 0] = d
@@ -329,8 +334,8 @@ def _rollout(
         x = x + d * ch
         y = y + d * sh
         heading = wrap_angle(heading + r)
-        if kind == LATTICE and not motor_run:  # rounding's drift, not a motor noise's
-            heading = wrap_angle(snap_heading(heading))
+        if turn > 0.0 and not motor_run:  # rounding's drift, not a motor noise's
+            heading = wrap_angle(snap_heading(heading, turn))
     return x, y, heading, rate
 
 
@@ -449,8 +454,8 @@ def rollout(
     motors = np.empty((steps, 2))
     poses = np.empty((steps, 3))
     x, y, heading = sample_start(world, rng)
-    if kind == LATTICE:  # the lattice's headings from the start
-        heading = float(wrap_angle(snap_heading(heading)))
+    if TURNS[kind]:  # the lattice's headings from the start
+        heading = float(wrap_angle(snap_heading(heading, TURNS[kind])))
     children = rng.spawn(3) if (noise_std or dropout or motor_noise_std) else None
     rate = 0.0
     for begin in range(0, steps, chunk):
@@ -485,6 +490,7 @@ def rollout(
             poses[begin:stop],
             kind,
             rate,
+            TURNS[kind],
         )
         if progress is not None:
             progress(stop)

@@ -233,6 +233,9 @@ BEHAVIOUR_TEXT = {
     "lattice": "lattice: min(s) < 1 -> (0, pi + k pi/6), k in {-1, 0, 1}; else "
     f"({LATTICE_STEP:g}, 0), (0, pi/6) or (0, -pi/6) with probabilities 1/2, 1/4, 1/4; "
     "headings on the multiples of pi/6",
+    "grid": "grid: min(s) < 1 -> (0, pi + k pi/2), k in {-1, 0, 1}; else "
+    f"({LATTICE_STEP:g}, 0), (0, pi/2) or (0, -pi/2) with probabilities 1/2, 1/4, 1/4; "
+    f"headings on the multiples of pi/2, positions on start + {LATTICE_STEP:g} Z^2",
 }
 """``meta.behaviour``: each behaviour in words (the paper's as every database before had it)."""
 

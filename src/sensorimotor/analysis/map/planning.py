@@ -18,7 +18,8 @@ raw readings / range, or the run's ``encode``, recurrent state carried), takes t
   (``Moves``), so the map's statistics hold: under the paper's behaviour a command drawn from
   its range for that bin (``d ~ U(0, 1)``, ``r`` uniform in the bin); under the lattice
   behaviour the lattice's own command (right: turn by -pi/6, straight: forward 0.9, left: turn
-  by +pi/6), from a start heading on the lattice, snapped after each step as it records.
+  by +pi/6; the grid's by pi/2), from a start heading on the lattice, snapped after each step
+  as it records.
 
 The baseline is the same behaviour's random walk (``sim.core.behaviour``, or the lattice's) for
 the same budget from the same start; success rate = the fraction of episodes that reach their
@@ -36,7 +37,13 @@ import numpy as np
 from sensorimotor.analysis.map.cells import STRAIGHT
 from sensorimotor.analysis.map.chmm import CloneHMM
 from sensorimotor.errors import InputError
-from sensorimotor.sim.behaviours import LATTICE_STEP, LATTICE_TURN, lattice_behaviour, snap_heading
+from sensorimotor.sim.behaviours import (
+    BEHAVIOURS,
+    LATTICE_STEP,
+    TURNS,
+    lattice_behaviour,
+    snap_heading,
+)
 from sensorimotor.sim.core import (
     TURN_THRESHOLD,
     SensorLayout,
@@ -55,7 +62,6 @@ GOAL_RADIUS = 4.0
 N_TRACES = 2  # episodes of the map whose trajectories are kept (the figure)
 MOVING = (1, 2, 3)  # right, straight, left (cells.ACTION_NAMES)
 R_RANGE = {1: (-math.pi / 6, -STRAIGHT), 2: (-STRAIGHT, STRAIGHT), 3: (STRAIGHT, math.pi / 6)}
-LATTICE_COMMANDS = {1: (0.0, -LATTICE_TURN), 2: (LATTICE_STEP, 0.0), 3: (0.0, LATTICE_TURN)}
 
 
 @dataclass(frozen=True)
@@ -67,29 +73,34 @@ class Moves:
     behaviour: str = "paper"
 
     @property
-    def lattice(self) -> bool:
-        return self.behaviour == "lattice"
+    def turn(self) -> float:
+        """The step of the behaviour's heading lattice (``sim.behaviours.TURNS``; 0: none)."""
+        return TURNS[BEHAVIOURS.index(self.behaviour)]
+
+    def lattice_command(self, action: int) -> tuple[float, float]:
+        """A lattice's command of moving ``action``: right, straight (forward), left."""
+        return {1: (0.0, -self.turn), 2: (LATTICE_STEP, 0.0), 3: (0.0, self.turn)}[action]
 
     def command(self, action: int, rng: np.random.Generator) -> tuple[float, float]:
         """The command that executes moving ``action``."""
-        if self.lattice:
-            return LATTICE_COMMANDS[action]
+        if self.turn:
+            return self.lattice_command(action)
         lo, hi = R_RANGE[action]
         return float(rng.random()), float(lo + (hi - lo) * rng.random())
 
     def expected(self, action: int) -> tuple[float, float]:
         """The mean command of moving ``action`` (the true-pose planner's look-ahead)."""
-        return LATTICE_COMMANDS[action] if self.lattice else (0.5, 0.5 * sum(R_RANGE[action]))
+        return self.lattice_command(action) if self.turn else (0.5, 0.5 * sum(R_RANGE[action]))
 
     def walk(self, min_reading: float, rng: np.random.Generator) -> tuple[float, float]:
         """The behaviour's own step: the turn-around below TURN_THRESHOLD, else a random move."""
-        if self.lattice:
-            return lattice_behaviour(min_reading, rng.random())
+        if self.turn:
+            return lattice_behaviour(min_reading, rng.random(), self.turn)
         return behaviour(min_reading, rng.random(), rng.random())
 
     def heading(self, heading: float) -> float:
-        """A heading as the behaviour keeps it: on the lattice, snapped to it."""
-        return wrap_angle(snap_heading(heading)) if self.lattice else heading
+        """A heading as the behaviour keeps it: on its lattice, snapped to it."""
+        return wrap_angle(snap_heading(heading, self.turn)) if self.turn else heading
 
 
 PAPER_MOVES = Moves()
