@@ -48,7 +48,6 @@ def run_kernel(
         noise if noise is not None else np.zeros((0, n)), relative,
         dropped if dropped is not None else np.zeros((0, n), dtype=bool),
         motor if motor is not None else np.zeros((0, 2)), sensors, motors, poses, sim.PAPER, 0.0,
-        0.0,
     )[:3]  # fmt: skip
 
 

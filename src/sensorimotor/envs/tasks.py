@@ -244,7 +244,7 @@ def drive_out(env: LaserTaskEnv) -> dict | None:
         x, y, heading, _ = sim._rollout(
             env.segments, *env._walk, env.angles, env.max_range, paper_rays, x, y, heading,
             env.np_random.random((n, 2)), none[0], False, none[1], np.zeros((0, 2)),
-            readings, motors, poses, sim.PAPER, 0.0, sim.TURNS[sim.PAPER],
+            readings, motors, poses, sim.PAPER, 0.0,
         )  # fmt: skip
         parts.append((readings, motors, poses))
         rooms = env.world.room_index(poses[:, 0], poses[:, 1])  # (n,)

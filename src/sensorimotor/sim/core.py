@@ -247,12 +247,10 @@ def _rollout(
     poses,
     kind,
     rate,
-    turn,
 ):
     """Run ``len(uniforms)`` steps of behaviour ``kind`` (``PAPER``, ``SMOOTH``, ``LATTICE``,
     ``GRID``: its uniforms a step are ``uniforms[t]``, the smooth one's state ``rate``, a
-    lattice's heading step ``turn``, 0 for the others) from pose (x, y, heading), filling the
-    outputs.
+    lattice's heading step ``TURNS[kind]``) from pose (x, y, heading), filling the outputs.
 
     Row t: ``poses[t]`` is where ``sensors[t]`` is read; ``motors[t]`` is chosen from it and
     leads to row t + 1. The behaviour reads the paper's five rays, noiseless (a reflex the
@@ -281,6 +279,7 @@ def _rollout(
     drop_run = dropped.shape[0] > 0
     motor_run = motor_noise.shape[0] > 0
     all_walls = dims[1] == 0.0
+    turn = TURNS[kind]  # the heading lattice's step (0: none)
     for t in range(uniforms.shape[0]):
         poses[t, 0] = x
         poses[t, 1] = y
@@ -490,7 +489,6 @@ def rollout(
             poses[begin:stop],
             kind,
             rate,
-            TURNS[kind],
         )
         if progress is not None:
             progress(stop)
