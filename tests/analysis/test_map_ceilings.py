@@ -5,6 +5,7 @@ models and the recurrent net."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -112,7 +113,7 @@ def test_on_a_lattice_database_the_planners_move_as_the_lattice_behaviour(monkey
     for use_map in (False, True):  # the random baseline, then the map's planner (a 1-cell map)
         model = _one_cell_map()
         kmeans = type("K", (), {"cluster_centers_": np.zeros((1, 5))})()
-        planning.run_episode(world, DEFAULT_LAYOUT, lambda: lambda z: np.zeros(5), kmeans, model,
+        planning.run_episode(world, DEFAULT_LAYOUT, lambda: lambda z, m: np.zeros(5), kmeans, model,
                              np.zeros(model.T.shape[1]), goal, start, np.random.default_rng(0),
                              budget=60, use_map=use_map, moves=Moves("lattice"))  # fmt: skip
     assert len(walked) > 60
@@ -171,3 +172,29 @@ def test_the_recurrent_net_learns_the_second_order_process():
 @pytest.mark.parametrize(("noise", "want"), [(0.0, ceilings.SIGMA_FLOOR), (0.5, 0.5)])
 def test_the_reading_model_takes_the_databases_noise_with_a_floor(noise, want):
     assert ceilings.reading_sigma({"noise_std": noise}) == want
+
+
+@pytest.mark.parametrize("kind", ["rec-sm", "rec-sma"])
+def test_the_planners_online_encoder_is_the_models_encode_of_the_recording(kind):
+    """Fed one reading and the command before it at a time, the planner's encoder gives the
+    representation ``models.encode`` gives the whole recording (Rec-SMA's memory reads the
+    commands, so a planner that dropped them would differ)."""
+    import torch
+
+    from sensorimotor.learn.evaluate import Run
+    from sensorimotor.learn.models import build_model
+    from sensorimotor.sim.database import generate, scale_motors, scale_sensors
+
+    db = generate(load_world("rooms1"), 40, seed=3)
+    model = build_model(kind, seed=0).eval()
+    with torch.no_grad():
+        s = torch.from_numpy(scale_sensors(db.sensors, db.max_range))[None]
+        m = torch.from_numpy(scale_motors(db.motors))[None]
+        offline = model.encode(s, None, m)[0][0].numpy()  # (T, 10)
+    encode = planning.encoder_of(Run(Path("run"), model, {}), db.max_range)()
+    online = [encode(db.sensors[t], None if t == 0 else tuple(db.motors[t - 1])) for t in range(40)]
+    np.testing.assert_allclose(np.array(online), offline, atol=1e-6)
+    if kind == "rec-sma":  # the commands matter: without them the memory drifts elsewhere
+        blind = planning.encoder_of(Run(Path("run"), model, {}), db.max_range)()
+        dropped = np.array([blind(db.sensors[t], None) for t in range(40)])
+        assert np.abs(dropped - offline).max() > 1e-3

@@ -5,7 +5,8 @@ whatever the map); the goal is reached when the agent's true position comes with
 ``GOAL_RADIUS`` of it. The map aims at its goal states (``goal_states``: the well-visited states
 whose mean position, their place field's centre on the training split, lies near the goal). At
 every step the agent reads its lasers (``sim.core.read_sensors``), encodes the readings (the
-raw readings / range, or the run's ``encode``, recurrent state carried), takes the cell
+raw readings / range, or the run's ``encode``, recurrent state carried; a motor memory also
+reads the command just executed), takes the cell
 (k-means), updates the map's filter, and acts:
 
 - the wall-avoidance reflex of the paper's behaviour is kept: a reading below 1 forces the
@@ -36,7 +37,6 @@ import numpy as np
 
 from sensorimotor.analysis.map.cells import STRAIGHT
 from sensorimotor.analysis.map.chmm import CloneHMM
-from sensorimotor.errors import InputError
 from sensorimotor.sim.behaviours import (
     BEHAVIOURS,
     LATTICE_STEP,
@@ -140,27 +140,32 @@ def goal_states(
 
 def encoder_of(run, max_range: float):
     """A factory of online encoders: ``encoder_of(run, r)()`` is a function from one reading
-    (R,) to its representation (D,), carrying a recurrent model's state from one call to the
-    next (``run`` is ``"raw"``: the readings / range, or a loaded ``evaluate.Run``)."""
+    (R,) and the command (d, r) executed just before it (None at the start) to the reading's
+    representation (D,), carrying a recurrent model's state from one call to the next (``run``
+    is ``"raw"``: the readings / range, or a loaded ``evaluate.Run``). Only a motor memory
+    (Rec-SMA) reads the command, as m_{t-1} beside s_t, zero at the start as in training."""
     if isinstance(run, str):
-        return lambda: lambda readings: np.asarray(readings, dtype=np.float64) / max_range
-    if run.model.config.motor_memory:
-        raise InputError(
-            f"{run.path}: a {run.kind} memory reads the motor commands, which the planner does "
-            "not pass to an encoder yet; plan with a paper kind's run"
-        )
+        return lambda: lambda readings, _command: np.asarray(readings, dtype=np.float64) / max_range
     import torch
 
-    from sensorimotor.sim.database import scale_sensors
+    from sensorimotor.sim.database import scale_motors, scale_sensors
+
+    motor_memory = run.model.config.motor_memory
 
     def fresh():
         state = None
 
         @torch.no_grad()
-        def encode(readings: np.ndarray) -> np.ndarray:
+        def encode(readings: np.ndarray, command: tuple[float, float] | None) -> np.ndarray:
             nonlocal state
             s = torch.from_numpy(scale_sensors(readings[None], max_range))[None]  # (1, 1, R)
-            z, state = run.model.encode(s, state)  # (1, 1, D)
+            motors = None
+            if motor_memory:
+                motors = torch.zeros(1, 1, 2)  # m_t: not chosen yet, and z_t does not read it
+                if state is not None and command is not None:
+                    last = torch.from_numpy(scale_motors(np.array([command])))  # (1, 2)
+                    state = (state[0], state[1], last[None])  # m_{t-1}: (1, 1, 2)
+            z, state = run.model.encode(s, state, motors)  # (1, 1, D)
             return z[0, 0].numpy().astype(np.float64)
 
         return encode
@@ -193,7 +198,7 @@ def run_episode(
     x, y, heading = start[0], start[1], moves.heading(start[2])
     encode = encoder() if use_map else None
     centres = kmeans.cluster_centers_  # (K, D): the nearest is the cell (KMeans.predict)
-    alpha = cell = action = None
+    alpha = cell = action = command = None
     for t in range(budget + 1):
         if trace is not None:
             trace.append((x, y))
@@ -206,7 +211,7 @@ def run_episode(
             x, y, heading = apply_motor(x, y, heading, *moves.walk(readings.min(), rng))
             heading = moves.heading(heading)
             continue
-        new_cell = int(np.argmin(((centres - encode(readings)) ** 2).sum(axis=1)))
+        new_cell = int(np.argmin(((centres - encode(readings, command)) ** 2).sum(axis=1)))
         if alpha is None:
             alpha = np.full(C, 1.0 / C)
         else:
@@ -221,6 +226,7 @@ def run_episode(
             expected = after[:, cell * C : (cell + 1) * C] @ alpha  # (3,)
             action = MOVING[int(np.argmin(expected + 1e-9 * rng.random(3)))]
             d, r = moves.command(action, rng)
+        command = (d, r)
         x, y, heading = apply_motor(x, y, heading, d, r)
         heading = moves.heading(heading)
     return None
@@ -256,7 +262,7 @@ def planning(
     """Success rates of the map's planner and of the random behaviour over ``n_pairs``
     start/goal pairs (module docstring), and the first N_TRACES of the map's episodes as
     (positions (n, 2), goal (2,), steps or None). ``encoder()`` returns a fresh function from
-    one reading (R,) to its representation (D,); ``progress(pairs done, success so far)``
+    one reading (R,) and the command before it to its representation (D,); ``progress(pairs done, success so far)``
     after each pair."""
     reached = {"map": [], "random": []}
     traces = []
