@@ -1,10 +1,14 @@
-"""Shared fixtures: small real databases, the real command line in a subprocess, one thread;
+"""Shared fixtures: small real databases, the real command line (in this process), one thread;
 the longest modules collected first."""
 
 from __future__ import annotations
 
+import contextlib
+import io
+import os
 import subprocess
 import sys
+import traceback
 from pathlib import Path
 
 import pytest
@@ -24,14 +28,35 @@ def pytest_collection_modifyitems(items: list) -> None:
 
 
 def run_cli(*args: str | Path, cwd: Path | None = None, timeout: float = 600):
-    """Run ``python -m sensorimotor ARGS`` and return the CompletedProcess (text output)."""
-    return subprocess.run(
-        [sys.executable, "-m", "sensorimotor", *map(str, args)],
-        capture_output=True,
-        text=True,
-        cwd=cwd,
-        timeout=timeout,
-    )
+    """The command line on ``args`` as ``python -m sensorimotor ARGS`` runs it (``cli.run``: the
+    same parsing, one-line errors and exit status), in this process: a command costs its work,
+    not a Python and torch start. What a command may change in the process (torch's threads, the
+    environment, the working folder) is put back; an unexpected exception is a traceback on
+    stderr and exit 1, as Python's. Returns a CompletedProcess (text output). ``timeout`` is
+    not enforced here (the tests that need a process of its own start one)."""
+    from sensorimotor.cli import run
+
+    argv = [str(a) for a in args]
+    out, err = io.StringIO(), io.StringIO()
+    threads, env, here = torch.get_num_threads(), dict(os.environ), os.getcwd()
+    try:
+        if cwd is not None:
+            os.chdir(cwd)
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            try:
+                rc = run(argv)
+            except SystemExit as exit_:
+                rc = exit_.code if isinstance(exit_.code, int) else 1
+            except Exception:
+                traceback.print_exc()
+                rc = 1
+    finally:
+        os.chdir(here)
+        torch.set_num_threads(threads)
+        os.environ.clear()
+        os.environ.update(env)
+    return subprocess.CompletedProcess([sys.executable, "-m", "sensorimotor", *argv], rc,
+                                       out.getvalue(), err.getvalue())  # fmt: skip
 
 
 def assert_one_line_error(proc, *needles: str) -> None:
