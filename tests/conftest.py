@@ -59,6 +59,15 @@ def run_cli(*args: str | Path, cwd: Path | None = None, timeout: float = 600):
                                        out.getvalue(), err.getvalue())  # fmt: skip
 
 
+def alive(pid: int, group: bool = False) -> bool:
+    """Whether process ``pid`` (or process group ``pid``, with ``group``) still exists."""
+    try:
+        (os.killpg if group else os.kill)(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
 def assert_one_line_error(proc, *needles: str) -> None:
     """Exit 2, one line on stderr that contains every needle, no traceback."""
     assert proc.returncode == 2, (proc.returncode, proc.stdout, proc.stderr)

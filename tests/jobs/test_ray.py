@@ -17,6 +17,7 @@ from pathlib import Path
 import matplotlib.image as mpimg
 import pytest
 
+from conftest import alive
 from sensorimotor.errors import InputError
 from sensorimotor.jobs import ray_backend, workers
 from sensorimotor.jobs.workers import Job, send_progress
@@ -72,14 +73,6 @@ def _sleep_then_write(path: str) -> None:
     Path(path).write_text("finished")
 
 
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    return True
-
-
 def test_ctrl_c_cancels_the_runs_tasks(cluster, tmp_path):
     """Ctrl-C kills the processes of the run's tasks: every task that started is gone within
     seconds (however slowly a loaded machine delivered its first line), none finishes."""
@@ -95,9 +88,9 @@ def test_ctrl_c_cancels_the_runs_tasks(cluster, tmp_path):
     pids = [int(Path(f"{p}.pid").read_text()) for p in paths if Path(f"{p}.pid").exists()]
     assert pids  # the interrupt came from a started task's line
     deadline = time.time() + 20
-    while time.time() < deadline and any(map(_alive, pids)):
+    while time.time() < deadline and any(map(alive, pids)):
         time.sleep(0.1)
-    assert not any(map(_alive, pids))
+    assert not any(map(alive, pids))
     assert not any(Path(p).exists() for p in paths)
 
 

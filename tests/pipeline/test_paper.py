@@ -15,7 +15,7 @@ from pathlib import Path
 import matplotlib.image as mpimg
 import pytest
 
-from conftest import assert_one_line_error
+from conftest import alive, assert_one_line_error
 
 STAGES = ("data", "train", "evaluate", "analyze", "report")
 
@@ -160,17 +160,9 @@ def test_ctrl_c_stops_every_worker_at_once_and_says_how_to_go_on(tmp_path):
     assert err.strip().splitlines()[-1].startswith("interrupted: "), err[-2000:]
     assert "Traceback" not in err, err[-4000:]
     deadline = time.time() + 5  # an exited child may linger a moment before it is reaped
-    while time.time() < deadline and _group_alive(proc.pid):
+    while time.time() < deadline and alive(proc.pid, group=True):
         time.sleep(0.1)
-    assert not _group_alive(proc.pid), "a process of the run outlived it"
-
-
-def _group_alive(pgid: int) -> bool:
-    try:
-        os.killpg(pgid, 0)
-    except ProcessLookupError:
-        return False
-    return True
+    assert not alive(proc.pid, group=True), "a process of the run outlived it"
 
 
 @pytest.mark.parametrize(
