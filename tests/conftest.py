@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import io
 import os
+import signal
 import subprocess
 import sys
 import traceback
@@ -32,13 +33,19 @@ def run_cli(*args: str | Path, cwd: Path | None = None, timeout: float = 600):
     same parsing, one-line errors and exit status), in this process: a command costs its work,
     not a Python and torch start. What a command may change in the process (torch's threads, the
     environment, the working folder) is put back; an unexpected exception is a traceback on
-    stderr and exit 1, as Python's. Returns a CompletedProcess (text output). ``timeout`` is
-    not enforced here (the tests that need a process of its own start one)."""
+    stderr and exit 1, as Python's; past ``timeout`` seconds, TimeoutError. Returns a
+    CompletedProcess (text output)."""
     from sensorimotor.cli import run
 
     argv = [str(a) for a in args]
+
+    def too_long(*_):
+        raise TimeoutError(f"sensorimotor {' '.join(argv)} took over {timeout:g} s")
+
     out, err = io.StringIO(), io.StringIO()
     threads, env, here = torch.get_num_threads(), dict(os.environ), os.getcwd()
+    alarm = signal.signal(signal.SIGALRM, too_long)
+    signal.setitimer(signal.ITIMER_REAL, timeout)
     try:
         if cwd is not None:
             os.chdir(cwd)
@@ -47,10 +54,14 @@ def run_cli(*args: str | Path, cwd: Path | None = None, timeout: float = 600):
                 rc = run(argv)
             except SystemExit as exit_:
                 rc = exit_.code if isinstance(exit_.code, int) else 1
+            except TimeoutError:
+                raise
             except Exception:
                 traceback.print_exc()
                 rc = 1
     finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, alarm)
         os.chdir(here)
         torch.set_num_threads(threads)
         os.environ.clear()

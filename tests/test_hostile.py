@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 import torch
 
-from conftest import assert_one_line_error
+from conftest import assert_one_line_error, run_cli
 from sensorimotor.analysis.probes import position_scores, probe_r2
 from sensorimotor.errors import InputError
 from sensorimotor.files import atomic_path, folder_lock, strict_json, write_json_atomic
@@ -399,26 +399,14 @@ def _input_cases():
                     )
 
 
-def _in_process(args, capsys, limit: float = 10.0) -> tuple[int, str, float]:
-    """``sensorimotor ARGS`` run in this process under an alarm: exit status, stderr, seconds."""
-    import signal
+def _in_process(args, limit: float = 10.0) -> tuple[int, str, float]:
+    """``sensorimotor ARGS`` run in this process (``run_cli``) within ``limit`` seconds: exit
+    status, stderr, seconds."""
     import time
 
-    from sensorimotor.cli import run
-
-    def too_long(*_):
-        raise TimeoutError(f"sensorimotor {' '.join(map(str, args))} took over {limit:g} s")
-
-    capsys.readouterr()
-    old = signal.signal(signal.SIGALRM, too_long)
-    signal.setitimer(signal.ITIMER_REAL, limit)
     start = time.perf_counter()
-    try:
-        rc = run([str(a) for a in args])
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, old)
-    return rc, capsys.readouterr().err, time.perf_counter() - start
+    proc = run_cli(*args, timeout=limit)
+    return proc.returncode, proc.stderr, time.perf_counter() - start
 
 
 def _assert_one_line(rc: int, err: str, *needles: str) -> None:
@@ -502,15 +490,13 @@ def _hostile(kind: str, tmp_path):
 
 
 @pytest.mark.parametrize(("words", "name", "kind"), list(_input_cases()))
-def test_every_path_a_command_reads_goes_through_the_door(
-    words, name, kind, baseline, tmp_path, capsys
-):
+def test_every_path_a_command_reads_goes_through_the_door(words, name, kind, baseline, tmp_path):
     """A FIFO, a link to /dev/zero, a folder and a missing file in each input parameter: one
     line naming it, exit 2, at once, and nothing written."""
     cmd = dict(_commands())[words]
     path = _hostile(kind, tmp_path)
     args = _argv(words, cmd, baseline, tmp_path, {name: path})
-    rc, err, _ = _in_process(args, capsys)
+    rc, err, _ = _in_process(args)
     _assert_one_line(rc, err, str(path))
     assert not (tmp_path / "out").exists()
     assert not list(tmp_path.glob("out.*"))
@@ -544,7 +530,7 @@ def test_every_folder_a_command_writes_is_locked(words, baseline, tmp_path, caps
     out.mkdir()
     args = _argv(words, cmd, baseline, tmp_path, {})
     with folder_lock(out, "output folder" if words != ("train",) else "run folder"):
-        rc, err, _ = _in_process(args, capsys)
+        rc, err, _ = _in_process(args)
     _assert_one_line(rc, err, str(out), "another process is writing this", "folder")
     assert list(out.iterdir()) == []  # the lock's file is the holder's, removed with it
 
@@ -590,7 +576,7 @@ def test_every_numeric_option_is_bounded_stated_and_checked_as_parsed(words, par
         got = ctx.params[param.name]
         got = got if not isinstance(got, list | tuple) else got[0]
         assert param.min <= got <= param.max, (words, param.name, value, got)
-    rc, _, _ = _in_process([*words, "--help"], capsys)
+    rc, _, _ = _in_process([*words, "--help"])
     assert rc == 0
 
 
@@ -617,11 +603,11 @@ def test_a_ros2_bag_folder_whose_files_are_not_regular_is_refused_before_it_is_o
     (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
     os.mkfifo(bag / "bag_0.db3")
     out = tmp_path / "db.npz"
-    rc, err, _ = _in_process(["import-bag", bag, "--out", out], capsys)
+    rc, err, _ = _in_process(["import-bag", bag, "--out", out])
     _assert_one_line(rc, err, "bag_0.db3", "a FIFO, not a file of a ROS 2 bag")
     (bag / "bag_0.db3").unlink()
     (bag / "bag_0.db3").symlink_to("/dev/zero")
-    rc, err, _ = _in_process(["import-bag", bag, "--out", out], capsys)
+    rc, err, _ = _in_process(["import-bag", bag, "--out", out])
     _assert_one_line(rc, err, "bag_0.db3", "a device")
     assert not out.exists()
 
@@ -660,7 +646,7 @@ def test_the_image_a_map_names_goes_through_the_door_and_its_pixels_are_bounded(
         path.write_bytes(b"P5 20000 20000 255\n" + bytes(100))
     out = tmp_path / "w.toml"
     rc, err, seconds = _in_process(
-        ["world", "import", _map_yaml(tmp_path, path.name), "--out", out], capsys
+        ["world", "import", _map_yaml(tmp_path, path.name), "--out", out]
     )
     _assert_one_line(rc, err, str(path))
     if image.startswith("huge"):
@@ -671,7 +657,7 @@ def test_the_image_a_map_names_goes_through_the_door_and_its_pixels_are_bounded(
 
 def test_a_map_origin_nested_deep_is_one_line(tmp_path, capsys):
     yaml = _map_yaml(tmp_path, "map.pgm", "[" * 5000 + "]" * 5000)
-    rc, err, _ = _in_process(["world", "import", yaml, "--out", tmp_path / "w.toml"], capsys)
+    rc, err, _ = _in_process(["world", "import", yaml, "--out", tmp_path / "w.toml"])
     _assert_one_line(rc, err, "map.yaml:3", "a list within a list")
 
 
@@ -686,7 +672,7 @@ def test_a_sweep_of_a_billion_trials_is_refused_before_its_grid_is_built(
     else:
         body = 'search = "random"\ntrials = 1000000000\n[space]\nlr = [0.1, 0.2]\n'
     spec.write_text(f'data = "{square_db_path}"\n{body}')
-    rc, err, seconds = _in_process(["sweep", spec, "--out", tmp_path / "s"], capsys)
+    rc, err, seconds = _in_process(["sweep", spec, "--out", tmp_path / "s"])
     _assert_one_line(rc, err, str(spec), "1,000")
     assert seconds < 5
     assert not (tmp_path / "s").exists()
@@ -697,7 +683,7 @@ def test_a_sweep_whose_data_is_a_fifo_is_refused_through_the_door(tmp_path, caps
     os.mkfifo(fifo)
     spec = tmp_path / "sweep.toml"
     spec.write_text(f'data = "{fifo}"\n[space]\nlr = [0.1, 0.2]\n')
-    rc, err, _ = _in_process(["sweep", spec, "--out", tmp_path / "s"], capsys)
+    rc, err, _ = _in_process(["sweep", spec, "--out", tmp_path / "s"])
     _assert_one_line(rc, err, str(fifo), "a FIFO, not a database")
 
 
@@ -711,7 +697,7 @@ def test_a_sweep_whose_data_is_a_fifo_is_refused_through_the_door(tmp_path, caps
 )
 def test_a_built_in_worlds_name_is_refused_up_front(args, tmp_path, capsys):
     out = tmp_path / "w.toml"
-    rc, err, _ = _in_process([*args, "--out", out], capsys)
+    rc, err, _ = _in_process([*args, "--out", out])
     _assert_one_line(rc, err, "the name of a built-in world")
     assert not out.exists()
 
@@ -721,13 +707,13 @@ def test_an_rl_out_that_is_a_file_or_a_read_only_folder_is_one_line(tmp_path, ca
     taken = tmp_path / "taken"
     taken.write_text("mine")
     args = ["rl", "corner", "--features", "pose", "--seeds", "1", "--steps", "64"]
-    rc, err, _ = _in_process([*args, "--out", taken], capsys)
+    rc, err, _ = _in_process([*args, "--out", taken])
     _assert_one_line(rc, err, str(taken), "not a folder")
     assert taken.read_text() == "mine"
     if os.geteuid() != 0:  # root writes anywhere
         locked = tmp_path / "ro"
         locked.mkdir(mode=0o500)
-        rc, err, _ = _in_process([*args, "--out", locked], capsys)
+        rc, err, _ = _in_process([*args, "--out", locked])
         _assert_one_line(rc, err, str(locked))
 
 
@@ -754,7 +740,7 @@ def test_a_simulated_database_whose_motors_do_not_move_it_is_refused(tmp_path, c
     motors[:, 0] = -5.0  # every forward command -5: the poses moved forward
     save_database(Database(db.sensors, motors, db.poses, db.meta), tmp_path / "lie.npz")
     rc, err, _ = _in_process(
-        ["analyze", "raw", "--data", tmp_path / "lie.npz", "--out", tmp_path / "a"], capsys
+        ["analyze", "raw", "--data", tmp_path / "lie.npz", "--out", tmp_path / "a"]
     )
     _assert_one_line(rc, err, "lie.npz", "its motors do not move it")
     save_database(db, tmp_path / "true.npz")
