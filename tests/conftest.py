@@ -66,8 +66,8 @@ def run_cli(*args: str | Path, cwd: Path | None = None, timeout: float = 600):
         torch.set_num_threads(threads)
         os.environ.clear()
         os.environ.update(env)
-    return subprocess.CompletedProcess([sys.executable, "-m", "sensorimotor", *argv], rc,
-                                       out.getvalue(), err.getvalue())  # fmt: skip
+    command = [sys.executable, "-m", "sensorimotor", *argv]
+    return subprocess.CompletedProcess(command, rc, out.getvalue(), err.getvalue())
 
 
 def alive(pid: int, group: bool = False) -> bool:

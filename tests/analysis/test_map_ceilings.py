@@ -92,7 +92,9 @@ def _spy(module, monkeypatch) -> list:
 
 def _on_the_lattice(seen) -> None:
     turn = math.pi / 6
-    allowed = [(0.9, 0.0), (0.0, turn), (0.0, -turn)] + [(0.0, math.pi + k * turn) for k in (-1, 0, 1)]
+    allowed = [(0.9, 0.0), (0.0, turn), (0.0, -turn)] + [
+        (0.0, math.pi + k * turn) for k in (-1, 0, 1)
+    ]
     for heading, d, r in seen:
         assert min(math.hypot(d - a, r - b) for a, b in allowed) < 1e-12, (d, r)
         assert abs(heading / turn - round(heading / turn)) < 1e-9, heading

@@ -94,12 +94,6 @@ def test_ctrl_c_cancels_the_runs_tasks(cluster, tmp_path):
     assert not any(Path(p).exists() for p in paths)
 
 
-def _state(run: Path) -> dict:
-    import torch
-
-    return torch.load(run / "model.pt", map_location="cpu", weights_only=True)
-
-
 @pytest.mark.slow  # a smoke reproduction of Square on Ray
 def test_reproduce_on_ray_trains_what_local_jobs_train(cluster, tmp_path, one_thread):
     """`reproduce --backend ray` runs the pipeline's jobs as Ray tasks: its table is whole and
@@ -109,6 +103,7 @@ def test_reproduce_on_ray_trains_what_local_jobs_train(cluster, tmp_path, one_th
     import torch
 
     from sensorimotor.files import file_hash
+    from sensorimotor.learn.runs import torch_load
     from sensorimotor.pipeline import paper
     from sensorimotor.reproduce import reproduce
 
@@ -125,7 +120,8 @@ def test_reproduce_on_ray_trains_what_local_jobs_train(cluster, tmp_path, one_th
     for job in jobs:
         job.fn(*job.args)
     for run in (out / "runs").iterdir():
-        ray_state, local_state = _state(run), _state(rep.out / "runs" / run.name)
+        ray_state = torch_load(run / "model.pt")
+        local_state = torch_load(rep.out / "runs" / run.name / "model.pt")
         assert ray_state.keys() == local_state.keys()
         for key, tensor in ray_state.items():
             assert torch.equal(tensor, local_state[key]), (run.name, key)

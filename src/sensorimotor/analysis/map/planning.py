@@ -79,7 +79,7 @@ class Moves:
 
     def lattice_command(self, action: int) -> tuple[float, float]:
         """A lattice's command of moving ``action``: right, straight (forward), left."""
-        return {1: (0.0, -self.turn), 2: (LATTICE_STEP, 0.0), 3: (0.0, self.turn)}[action]
+        return ((0.0, -self.turn), (LATTICE_STEP, 0.0), (0.0, self.turn))[MOVING.index(action)]
 
     def command(self, action: int, rng: np.random.Generator) -> tuple[float, float]:
         """The command that executes moving ``action``."""
@@ -262,8 +262,8 @@ def planning(
     """Success rates of the map's planner and of the random behaviour over ``n_pairs``
     start/goal pairs (module docstring), and the first N_TRACES of the map's episodes as
     (positions (n, 2), goal (2,), steps or None). ``encoder()`` returns a fresh function from
-    one reading (R,) and the command before it to its representation (D,); ``progress(pairs done, success so far)``
-    after each pair."""
+    one reading (R,) and the command before it to its representation (D,);
+    ``progress(pairs done, success so far)`` after each pair."""
     reached = {"map": [], "random": []}
     traces = []
     for pair, (goal_xy, start, seeds) in enumerate(start_goal_pairs(world, seed, n_pairs)):
