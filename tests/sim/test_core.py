@@ -559,3 +559,21 @@ def test_a_start_is_drawn_in_the_largest_free_region_never_in_a_sealed_room():
     assert not any(x < 20 and y < 20 for x, y in starts)  # 16 % of the world, never drawn
     for name in ("square", "rooms1", "rooms2"):
         assert sim._start_region(load_world(name)) is None
+
+
+def test_walk_in_chunks_is_the_rollout_from_the_same_pose_and_uniforms():
+    """``walk``, the public door to the kernel for callers that walk in chunks: two chunks give
+    the rows of ``rollout`` (same start, same uniforms), the pose after each chunk joins them."""
+    w = load_world("rooms1")
+    steps = 300
+    whole = sim.rollout(w, steps, seed=4, chunk=steps)
+    rng = np.random.default_rng(4)
+    pose = sim.sample_start(w, rng)
+    uniforms = rng.random((steps, 2))
+    grid = sim.for_rays(w.grid, len(w.segments), 5).arrays()
+    angles = np.asarray(sim.DEFAULT_LAYOUT.angles)
+    first = sim.walk(w.segments, grid, angles, 10.0, pose, uniforms[:120])
+    second = sim.walk(w.segments, grid, angles, 10.0, first[3], uniforms[120:])
+    for k, rows in enumerate((whole.sensors, whole.motors, whole.poses)):
+        np.testing.assert_array_equal(np.concatenate([first[k], second[k]]), rows)
+    assert first[3] == tuple(second[2][0])  # the pose after a chunk is the next one's first

@@ -233,19 +233,14 @@ def drive_out(env: LaserTaskEnv) -> dict | None:
     if env._walk is None:
         grid = sim.for_rays(env.world.grid, len(env.segments), len(env.angles))
         env._walk = grid.arrays()
-    paper_rays = tuple(env.angles) == tuple(sim.DEFAULT_LAYOUT.angles)
-    x, y, heading = env.pose
+    pose = env.pose
     parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
     entered, done = None, 0  # the step it first stood in another room; steps walked
-    none = np.zeros((0, len(env.angles))), np.zeros((0, len(env.angles)), bool)
     while done < EXCURSION_CAP:
         n = min(EXCURSION_CHUNK, EXCURSION_CAP - done)
-        readings, motors, poses = np.empty((n, len(env.angles))), np.empty((n, 2)), np.empty((n, 3))
-        x, y, heading, _ = sim._rollout(
-            env.segments, *env._walk, env.angles, env.max_range, paper_rays, x, y, heading,
-            env.np_random.random((n, 2)), none[0], False, none[1], np.zeros((0, 2)),
-            readings, motors, poses, sim.PAPER, 0.0,
-        )  # fmt: skip
+        readings, motors, poses, pose = sim.walk(
+            env.segments, env._walk, env.angles, env.max_range, pose, env.np_random.random((n, 2))
+        )
         parts.append((readings, motors, poses))
         rooms = env.world.room_index(poses[:, 0], poses[:, 1])  # (n,)
         away = np.flatnonzero((rooms >= 0) & (rooms != start)) + done  # steps in another room

@@ -338,6 +338,29 @@ def _rollout(
     return x, y, heading, rate
 
 
+def walk(
+    segments: np.ndarray,
+    grid: tuple[np.ndarray, np.ndarray, np.ndarray],
+    angles: np.ndarray,
+    max_range: float,
+    pose: tuple[float, float, float],
+    uniforms: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[float, float, float]]:
+    """``len(uniforms)`` noiseless steps of the paper's behaviour from ``pose``: readings (T, R),
+    commands (T, 2), poses (T, 3) and the pose after. The one door to ``_rollout`` for a caller
+    that walks in chunks of its own (``envs.tasks``' excursion); ``grid`` is
+    ``WallGrid.arrays()`` of ``for_rays``' choice."""
+    n, rays = len(uniforms), len(angles)
+    readings, motors, poses = np.empty((n, rays)), np.empty((n, 2)), np.empty((n, 3))
+    paper_rays = tuple(angles) == DEFAULT_LAYOUT.angles and max_range >= TURN_THRESHOLD
+    none = np.zeros((0, rays))
+    x, y, heading, _ = _rollout(
+        segments, *grid, angles, max_range, paper_rays, *pose, uniforms, none, False,
+        none.astype(bool), np.zeros((0, 2)), readings, motors, poses, PAPER, 0.0,
+    )  # fmt: skip
+    return readings, motors, poses, (x, y, heading)
+
+
 def _heading(rng: np.random.Generator) -> float:
     """A heading uniform over (-pi, pi] (``uniform`` draws [-pi, pi); -pi is the same as pi)."""
     h = float(rng.uniform(-math.pi, math.pi))
