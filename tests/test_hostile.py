@@ -232,13 +232,15 @@ def test_temporaries_of_a_killed_process_are_cleaned_by_the_next_write(tmp_path)
 # 4. Tracebacks where one line is promised -----------------------------------------------------
 
 
-def test_deeply_nested_world_files_and_run_configs_are_one_line(tmp_path, cli, run):
+def test_deeply_nested_world_files_and_run_configs_are_one_line(
+    tmp_path, cli, run, square_db_path
+):
     world = tmp_path / "deep.toml"
     world.write_text("size = 50\nwalls = " + "[" * 5000 + "]" * 5000 + "\n")
     proc = cli("generate", world, "--steps", "500", "--out", tmp_path / "db.npz")
     assert_one_line_error(proc, str(world), "nested")
     (run / "config.json").write_text("[" * 100_000 + "]" * 100_000)
-    proc = cli("evaluate", run, "--data", tmp_path / "db.npz")
+    proc = cli("evaluate", run, "--data", square_db_path)
     assert_one_line_error(proc, "config.json", "nested")
 
 
@@ -513,6 +515,41 @@ def test_every_command_declares_what_it_writes():
         for p in cmd.params:
             if p.name in ("out", "json_out"):
                 assert p.name in _outputs(cmd), (words, p.name)
+
+
+def test_every_database_a_command_reads_is_declared_and_refused_before_the_imports(
+    baseline, tmp_path
+):
+    """``@reads`` (``cli.app.reads``) names every database parameter of every command, and a
+    missing database is refused in one line, exit 2, before torch is imported (seconds): run
+    in a fresh interpreter, every such command one after another."""
+    cases = []
+    for words, cmd in _commands():
+        declared = getattr(cmd.callback, "__reads__", {})
+        for param in cmd.params:
+            if param.name in ("data", "fit_data"):
+                assert param.name in declared, f"{' '.join(words)}: {param.name} not in @reads"
+                missing = str(tmp_path / f"missing_{param.name}.npz")
+                args = _argv(words, cmd, baseline, tmp_path, {param.name: missing})
+                cases.append(([str(a) for a in args], missing))
+    assert len(cases) >= 8  # train, evaluate, table, analyze x2, map x2, plot x2
+    script = (
+        "import json, sys\n"
+        "from sensorimotor.cli import run\n"
+        "for argv, missing in json.loads(sys.argv[1]):\n"
+        "    assert run(argv) == 2, argv\n"
+        "assert 'torch' not in sys.modules, 'torch imported before the refusal'\n"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", script, json.dumps(cases)], capture_output=True, text=True,
+        timeout=120,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert len(lines) == len(cases), proc.stderr
+    for line, (_, missing) in zip(lines, cases, strict=True):
+        assert line == f"error: {missing}: database (.npz) not found"
+    assert not (tmp_path / "out").exists()
 
 
 def _folder_writers():

@@ -9,6 +9,7 @@ from typing import Annotated
 import typer
 
 from sensorimotor.cli.app import (
+    DATABASE,
     MAX_CLONES,
     MAX_CLUSTERS,
     MAX_CONTEXTS,
@@ -17,12 +18,14 @@ from sensorimotor.cli.app import (
     app,
     err_console,
     progress,
+    reads,
     writes,
 )
 from sensorimotor.sim import MAX_SEED
 
 
 @app.command()
+@reads(data=DATABASE, fit_data=DATABASE)
 @writes(folder="out")
 def analyze(
     run: Annotated[
@@ -74,6 +77,7 @@ def analyze(
 
 
 @app.command("map")
+@reads(data=DATABASE, fit_data=DATABASE)
 @writes(folder="out")
 def map_cmd(
     run: Annotated[str, typer.Argument(help="A run folder, or `raw` for the readings / range.")],

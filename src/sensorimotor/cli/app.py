@@ -63,6 +63,37 @@ def writes(folder: str | None = None, files: tuple[str, ...] = (), locked_inside
     return decorate
 
 
+DATABASE = "database (.npz)"  # what ``sim.database.load_database`` calls its input
+
+
+def reads(**inputs: str):
+    """Declare the input files a command reads, parameter -> what it is (as the library names
+    it; a list parameter: each path): each is checked through ``files.check_input`` before the
+    command's body, so a missing or wrong input is refused in one line before its imports
+    (torch alone takes seconds). The library checks them again where it opens them."""
+
+    def decorate(fn):
+        signature = inspect.signature(fn)
+
+        @functools.wraps(fn)
+        def command(*args, **kwargs):
+            from sensorimotor.files import check_input
+
+            bound = signature.bind(*args, **kwargs)
+            bound.apply_defaults()
+            for name, what in inputs.items():
+                value = bound.arguments[name]
+                for path in value if isinstance(value, list) else [value]:
+                    if path is not None:
+                        check_input(path, what)
+            return fn(*args, **kwargs)
+
+        command.__reads__ = dict(inputs)
+        return command
+
+    return decorate
+
+
 def progress_bar() -> Progress:
     """A rich progress bar on stderr."""
     return Progress(

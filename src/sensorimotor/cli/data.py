@@ -10,6 +10,7 @@ from typing import Annotated
 import typer
 
 from sensorimotor.cli.app import (
+    DATABASE,
     MAX_FOV,
     MAX_MOTOR_NOISE,
     MAX_NOISE,
@@ -25,6 +26,7 @@ from sensorimotor.cli.app import (
     err_console,
     plot_app,
     progress,
+    reads,
     writes,
 )
 from sensorimotor.errors import InputError
@@ -279,6 +281,7 @@ def plot_world_cmd(
 
 
 @plot_app.command("trajectory")
+@reads(data=DATABASE)
 @writes(files=("out",))
 def plot_trajectory_cmd(
     data: Annotated[
@@ -301,6 +304,7 @@ def plot_trajectory_cmd(
 
 
 @plot_app.command("perception")
+@reads(data=DATABASE)
 @writes(files=("out",))
 def plot_perception_cmd(
     data: Annotated[Path, typer.Option(help="Database (.npz) to take the situations from.")],

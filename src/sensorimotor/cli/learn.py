@@ -9,12 +9,14 @@ import typer
 from rich.console import Console
 
 from sensorimotor.cli.app import (
+    DATABASE,
     MAX_EPOCHS,
     MAX_MINUTES,
     ModelArg,
     _check_model,
     app,
     err_console,
+    reads,
     writes,
 )
 from sensorimotor.errors import InputError
@@ -29,6 +31,7 @@ SET_HELP = (
 
 
 @app.command()
+@reads(data=DATABASE)
 @writes(folder="out", locked_inside=True)
 def train(
     model: ModelArg,
@@ -179,6 +182,7 @@ def _train(model, data: Path, out: Path, config, seeds: list[int], note, resume,
 
 
 @app.command()
+@reads(data=DATABASE)
 @writes(files=("json_out",))
 def evaluate(
     run_dir: Annotated[Path, typer.Argument(help="Run folder from `sensorimotor train`.")],
@@ -217,6 +221,7 @@ def evaluate(
 
 
 @app.command()
+@reads(data=DATABASE)
 @writes(files=("json_out",))
 def table(
     run_dirs: Annotated[list[Path], typer.Argument(help="Run folders (several seeds allowed).")],
