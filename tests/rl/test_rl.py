@@ -356,3 +356,24 @@ def test_no_verdict_on_the_features_when_the_oracle_does_not_beat_random():
     assert "sanity check" in v["motors_help"]["numbers"]
     results["pose"] = scores(0.90, 0.92, 0.91)
     assert verdicts(results)["motors_help"]["holds"] is True
+
+
+@pytest.mark.parametrize("seeds", [1, 3])
+def test_the_figure_draws_whiskers_only_where_there_is_an_interval(seeds):
+    from matplotlib.container import ErrorbarContainer
+
+    from sensorimotor.rl.plots import rl_figure
+
+    one = seeds == 1
+    score = {"mean": 0.5, "ci_low": None if one else 0.4, "ci_high": None if one else 0.6}
+    curve = {k: {kk: [v, v] for kk, v in score.items()} for k in ("success", "success_stochastic")}
+    result = {"success": score, "success_stochastic": score, "curve": {"steps": [0, 10], **curve}}
+    rl = {"task": "homing", "world": "rooms1", "seeds": seeds, "eval_episodes": 50,
+          "transfer": [], "results": {"raw": result, "pose": result}}  # fmt: skip
+    fig = rl_figure(rl)
+    curves, *bars = fig.axes
+    assert (f"{seeds} seed:" if one else f"{seeds} seeds:") in curves.get_title()
+    for ax in bars:
+        whiskers = [c for c in ax.containers if isinstance(c, ErrorbarContainer)]
+        assert ("no interval" in ax.get_title()) == one
+        assert len(whiskers) == (0 if one else 1)

@@ -9,6 +9,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from sensorimotor.learn.models import REC_S, REC_SM, REC_SMA, SM, S
+from sensorimotor.learn.runs import count
 from sensorimotor.sim.plots import save_figure
 
 COLORS = {
@@ -53,8 +54,8 @@ def rl_figure(rl: dict) -> Figure:
         xlabel="environment steps",
         ylabel=f"success rate ({rl['eval_episodes']} episodes)",
         ylim=(-0.02, 1.02),
-        title=f"{rl['task']} in {rl['world']}, {rl['seeds']} seeds: deterministic (solid), "
-        "stochastic (dashed)",
+        title=f"{rl['task']} in {rl['world']}, {count(rl['seeds'], 'seed')}: deterministic "
+        "(solid), stochastic (dashed)",
     )
     curves.title.set_fontsize("medium")
     curves.legend(loc="upper left", fontsize="small")
@@ -62,7 +63,8 @@ def rl_figure(rl: dict) -> Figure:
         bars, ("success", "success_stochastic"), ("deterministic", "stochastic"), strict=True
     ):
         _final_bars(ax, rl, score)
-        ax.set_title(f"final {how} policy, 95 % CI", fontsize="medium")
+        what = "95 % CI" if rl["seeds"] > 1 else "one seed, no interval"
+        ax.set_title(f"final {how} policy, {what}", fontsize="medium")
     return fig
 
 
@@ -85,7 +87,8 @@ def _final_bars(ax, rl: dict, score: str) -> None:
         high = _or_mean([s["ci_high"] for s in stats], mean)
         err = np.clip([mean - low, high - mean], 0.0, None)  # no rounding below 0
         x = np.arange(len(names)) + (k - (len(worlds) - 1) / 2) * width
-        ax.bar(x, mean, width, yerr=err, capsize=2, label=world)
+        shown = {"yerr": err, "capsize": 2} if rl["seeds"] > 1 else {}  # one seed: no whiskers
+        ax.bar(x, mean, width, label=world, **shown)
     ax.set_xticks(np.arange(len(names)), names, rotation=30)
     ax.set(ylabel="final success rate", ylim=(0, 1.05))
     ax.legend(fontsize="small")
