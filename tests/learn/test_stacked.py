@@ -121,8 +121,8 @@ def relu_edited_to_tanh(monkeypatch):
 def test_the_stack_computes_what_models_py_computes():
     assert all(check.computes_models_py(kind) for kind in STACKED)
     assert train_mod.trains_stacked("sm", "cpu")
-    # a memory that reads the commands, and its open-loop transition, have no stacked pass
-    assert not any(check.computes_models_py(k) for k in KINDS if KINDS[k].motor_memory)
+    # a memory that reads the commands, with its open-loop head: fast.stacked_open_loop
+    assert all(check.computes_models_py(k) for k in KINDS if KINDS[k].motor_memory)
 
 
 def test_a_model_edited_in_models_py_trains_as_edited_with_autograd(

@@ -12,9 +12,9 @@ an engine owns only the arithmetic, behind four calls:
 and ``merge(engines)``, which joins engines whose seeds reached the same epoch (a resume
 after a kill between two seeds' checkpoints). ``AutogradEngine`` trains each seed's
 ``nn.Module`` with autograd through ``models.py``; ``StackedEngine`` trains them all as one
-network with stacked weights (``fast.stacked``, ``fast.stacked_lstm``), to float32 rounding the
-same numbers, wherever ``computes_models_py`` says the stacked passes compute what
-``models.py`` computes.
+network with stacked weights (``fast.stacked``, ``fast.stacked_lstm``,
+``fast.stacked_open_loop``), to float32 rounding the same numbers, wherever
+``computes_models_py`` says the stacked passes compute what ``models.py`` computes.
 
 Nothing outside this module imports ``fast``: the loop, the pipeline and the command line
 reach its optimiser (``FusedAdam``), its check (``computes_models_py``) and its process
@@ -45,6 +45,7 @@ from sensorimotor.learn.fast.check import computes_models_py
 from sensorimotor.learn.fast.cpu import flush_subnormals, keep_freed_memory
 from sensorimotor.learn.fast.stacked import StackedEncoders, train_epoch_stacked
 from sensorimotor.learn.fast.stacked_lstm import sequence_errors, train_epoch_stacked_recurrent
+from sensorimotor.learn.fast.stacked_open_loop import train_epoch_stacked_open_loop
 from sensorimotor.learn.models import SensorimotorEncoder
 
 __all__ = [  # the engines, and what the loop, the pipeline and the command line take of fast
@@ -100,6 +101,17 @@ class Engine(Protocol):
     def keep(self, index: Sequence[int]) -> None: ...
 
 
+def member_errors(members: Sequence[Member], data: TrainData, config: TrainConfig) -> list[float]:
+    """Each seed's validation error through its ``nn.Module``; with ``ahead`` > 1 the
+    open-loop errors' mean, what it was trained on."""
+    if config.ahead > 1:
+        return [
+            float(ahead_errors(mb.model, *data.val[mb.split], config.ahead).mean())
+            for mb in members
+        ]
+    return [model_error(mb.model, *data.val[mb.split]) for mb in members]
+
+
 class AutogradEngine:
     """Each seed's ``nn.Module`` trained with autograd and ``FusedAdam``, one after another:
     the reference the stacked engine is checked against, and what trains a model that the
@@ -128,15 +140,7 @@ class AutogradEngine:
         return errors
 
     def val_errors(self) -> list[float]:
-        """Each seed's validation error; with ``ahead`` > 1 the open-loop errors' mean, what
-        it was trained on."""
-        if self.config.ahead > 1:
-            ahead = self.config.ahead
-            return [
-                float(ahead_errors(mb.model, *self.data.val[mb.split], ahead).mean())
-                for mb in self.members
-            ]
-        return [model_error(mb.model, *self.data.val[mb.split]) for mb in self.members]
+        return member_errors(self.members, self.data, self.config)
 
     def snapshot(self, k: int) -> tuple[SensorimotorEncoder, dict]:
         return self.members[k].model, self.members[k].opt.state_dict()
@@ -148,7 +152,8 @@ class AutogradEngine:
 class StackedEngine:
     """Every seed of one model as one network with a leading seed axis: one
     ``fast.stacked.StackedEncoders``, trained by ``fast.stacked`` (feed-forward) or
-    ``fast.stacked_lstm`` (recurrent; its kernels are CPU code). Every seed's ``nn.Module`` is
+    ``fast.stacked_lstm`` (recurrent; its kernels are CPU code) or ``fast.stacked_open_loop``
+    (a motor memory, on the same kernels). Every seed's ``nn.Module`` is
     brought up to date after each epoch, for validation and saving."""
 
     def __init__(
@@ -175,7 +180,12 @@ class StackedEngine:
 
     def train_epoch(self, epoch: int) -> list[float]:
         c = self.config
-        if self.recurrent:
+        if self.net.config.motor_memory:
+            errors = train_epoch_stacked_open_loop(
+                self.net, self.data.s, self.data.m, c.batch_size, c.horizon, c.ahead,
+                c.ahead_every,
+            )  # fmt: skip
+        elif self.recurrent:
             errors = train_epoch_stacked_recurrent(
                 self.net, self.data.s, self.data.m, c.batch_size, c.horizon
             )
@@ -189,6 +199,8 @@ class StackedEngine:
     def val_errors(self) -> list[float]:
         for k, mb in enumerate(self.members):
             self.net.load_into(k, mb.model)
+        if self.net.config.motor_memory:  # each seed's model, as AutogradEngine scores it
+            return member_errors(self.members, self.data, self.config)
         if self.recurrent:  # every seed at once, as evaluate.model_error does each
             return sequence_errors(self.net, *self.data.val[0])
         return [model_error(mb.model, *self.data.val[mb.split]) for mb in self.members]

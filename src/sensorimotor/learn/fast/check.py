@@ -11,6 +11,7 @@ import torch
 
 from sensorimotor.learn.fast.stacked import StackedEncoders
 from sensorimotor.learn.fast.stacked_lstm import forward_backward as recurrent_forward_backward
+from sensorimotor.learn.fast.stacked_open_loop import forward_backward as open_loop_forward_backward
 from sensorimotor.learn.models import SensorimotorEncoder, build_model
 
 _KNOWN_LAYERS = (torch.nn.Sequential, torch.nn.Linear, torch.nn.ReLU, torch.nn.LSTM)
@@ -53,6 +54,8 @@ def computes_models_py(model: str) -> bool:
     except (KeyError, ValueError, RuntimeError):  # parameters the stack cannot lay out
         return False
     gen = torch.Generator().manual_seed(0)
+    if c.motor_memory:
+        return _open_loop_matches(module, net, gen)
     t, b = (5, 8) if c.recurrent else (1, 32)  # time steps, streams or batch
     state = module_state = None
     for _ in range(2):
@@ -78,4 +81,43 @@ def computes_models_py(model: str) -> bool:
         for g, p in zip(net.grads, module.parameters(), strict=True):
             if (g.reshape(p.shape) - p.grad).abs().max() > 1e-4 * p.grad.abs().max() + 1e-7:
                 return False
+    return True
+
+
+def _close(net: StackedEncoders, module: SensorimotorEncoder) -> bool:
+    """Every gradient of the stack's one seed equals autograd's, to float32 rounding."""
+    for g, p in zip(net.grads, module.parameters(), strict=True):
+        grad = torch.zeros_like(p) if p.grad is None else p.grad
+        if (g.reshape(p.shape) - grad).abs().max() > 1e-4 * grad.abs().max() + 1e-7:
+            return False
+    return True
+
+
+def _open_loop_matches(module: SensorimotorEncoder, net: StackedEncoders, gen) -> bool:
+    """``computes_models_py`` for a motor memory: two chunks of ``stacked_open_loop`` (the
+    state and the last command carried, some targets weighted out) against autograd through
+    ``encode`` and ``ahead`` with ``engine._open_loop_epoch``'s loss."""
+    c = module.config
+    t, b, ahead, every = 7, 3, 3, 2
+    state = module_state = None
+    for _ in range(2):
+        xs = torch.rand(t, b, c.n_sensors, generator=gen) * 20 - 5  # (T, B, 5), time first
+        xm = torch.rand(t + ahead - 1, b, c.n_motors, generator=gen) * 20 - 10
+        y = torch.rand(t + ahead - 1, b, c.n_sensors, generator=gen)
+        w = (torch.rand(ahead, -(-t // every), b, generator=gen) > 0.2).float()  # (A, T', B)
+        try:
+            state, sq, _ = open_loop_forward_backward(net, xs, xm, y, w, state, ahead, every)
+        except (KeyError, ValueError, RuntimeError):
+            return False
+        module.zero_grad()
+        z, module_state = module.encode(xs.transpose(0, 1), module_state, xm[:t].transpose(0, 1))
+        module_state = tuple(h.detach() for h in module_state)  # truncated, as training
+        pred = module.ahead(z, xm.transpose(0, 1), ahead, every)  # (A, B, T', 5)
+        target = torch.stack([y[k : k + t : every].transpose(0, 1) for k in range(ahead)])
+        err = (pred - target).square().sum(-1) * w.transpose(1, 2)  # (A, B, T')
+        (err.sum() / w.sum().clamp(min=1)).backward()
+        if not torch.allclose(sq, err.sum().detach().view(1), rtol=1e-4):
+            return False
+        if not _close(net, module):
+            return False
     return True

@@ -125,6 +125,29 @@ def cell_backward(dh, rec, act, cs, tc, dc, da, db, t):
                 dbk[u] += d[u]
 
 
+SMALL_STREAMS = 8  # at most this many streams, a step's recurrent product runs in numba
+
+
+@numba.njit(cache=True, **_FAST)
+def step_product(x, t, w, out):
+    """out[k, b] = x[k, t, b] w[k] for every seed and stream: x (K, T, B, I), w (K, I, O),
+    out (K, B, O). One time step's recurrent product at a few streams (Rec-SMA trains on 4),
+    where a call of the BLAS costs more than its arithmetic; a seed's sums run in the same
+    order whatever K."""
+    K, _, B, n_in = x.shape
+    n_out = w.shape[2]
+    for k in range(K):
+        wk = w[k]
+        for b in range(B):
+            xb, o = x[k, t, b], out[k, b]
+            for u in range(n_out):
+                o[u] = 0.0
+            for j in range(n_in):
+                xj, wj = xb[j], wk[j]
+                for u in range(n_out):
+                    o[u] += xj * wj[u]
+
+
 @numba.njit(cache=True, **_FAST)
 def layer_sequence(act, whh_t, bias, scale, h, c, hs):
     """One layer of every seed over a whole sequence of batch one, forward only: act (K, L,
@@ -257,24 +280,7 @@ def forward_backward(
     x_in = xs.reshape(1, n, -1).expand(K, n, -1)
     (i_in,) = net.chains["sensor_in"]
     x = linear(x_in, *plan[i_in]).relu_()  # (K, TB, 16)
-    inputs = [x]  # input of every LSTM layer, (K, TB, in)
-    rec, rec_a = bufs.rec, bufs.rec.numpy()
-    for layer, buf in enumerate(bufs.layers):
-        wih, whh, bih, bhh = (net.params[i] for i in _lstm_params(net, layer))
-        torch.bmm(inputs[-1], wih.mT, out=buf.act.view(K, n, -1))  # x_t W_ih^T, every t
-        bias = (bih + bhh).view(K, -1).numpy()  # (K, 4H)
-        if state is None:
-            buf.hs[:, 0].zero_()
-            buf.cs[:, 0].zero_()
-        else:
-            buf.hs[:, 0].copy_(state[layer][0])
-            buf.cs[:, 0].copy_(state[layer][1])
-        act_a, hs_a, cs_a, tc_a = buf.arrays
-        whh_t = whh.mT
-        for t in range(T):
-            torch.bmm(buf.h_steps[t], whh_t, out=rec)  # (K, B, 4H)
-            cell_forward(act_a, rec_a, bias, bufs.scale, hs_a, cs_a, tc_a, t)
-        inputs.append(buf.hs[:, 1:].reshape(K, n, -1))  # (K, TB, H), a view
+    inputs = lstm_forward(net, bufs, x, state)
     (i_out,) = net.chains["sensor_out"]
     z = linear(inputs[-1], *plan[i_out])  # z_s (K, TB, 10)
     if c.uses_motors:
@@ -298,7 +304,53 @@ def forward_backward(
     wi, bi = net.linear_index[i_out]
     weight_grad(dz, inputs[-1], grads[wi])  # (K, 10, H)
     torch.sum(dz, 1, keepdim=True, out=grads[bi])
-    dh = matmul(dz, plan[i_out][0])  # (K, TB, H)
+    dh = lstm_backward(net, bufs, inputs, matmul(dz, plan[i_out][0]))  # (K, TB, 16)
+    dpre = relu_grad_(dh, inputs[0])  # through sensor_in's ReLU
+    wi, bi = net.linear_index[i_in]
+    weight_grad(dpre, x_in, grads[wi])
+    torch.sum(dpre, 1, keepdim=True, out=grads[bi])
+    return carried(bufs)
+
+
+def lstm_forward(net: StackedEncoders, bufs: _Buffers, x: torch.Tensor, state: State):
+    """Every LSTM layer over a chunk of T steps of B streams, from ``state`` (None: zero):
+    x (K, TB, in), time-major -> [x, each layer's output (K, TB, H)], the inputs of the
+    layers and the top's output (views of ``bufs``)."""
+    K, T, B = bufs.da.shape[:3]
+    n = T * B
+    inputs = [x]  # input of every LSTM layer, (K, TB, in)
+    rec, rec_a = bufs.rec, bufs.rec.numpy()
+    for layer, buf in enumerate(bufs.layers):
+        wih, whh, bih, bhh = (net.params[i] for i in _lstm_params(net, layer))
+        torch.bmm(inputs[-1], wih.mT, out=buf.act.view(K, n, -1))  # x_t W_ih^T, every t
+        bias = (bih + bhh).view(K, -1).numpy()  # (K, 4H)
+        if state is None:
+            buf.hs[:, 0].zero_()
+            buf.cs[:, 0].zero_()
+        else:
+            buf.hs[:, 0].copy_(state[layer][0])
+            buf.cs[:, 0].copy_(state[layer][1])
+        act_a, hs_a, cs_a, tc_a = buf.arrays
+        whh_t = whh.mT
+        small = whh_t.contiguous().numpy() if B <= SMALL_STREAMS else None  # (K, H, 4H)
+        for t in range(T):
+            if small is None:
+                torch.bmm(buf.h_steps[t], whh_t, out=rec)  # (K, B, 4H)
+            else:
+                step_product(hs_a, t, small, rec_a)  # h_{t-1} = hs[:, t]
+            cell_forward(act_a, rec_a, bias, bufs.scale, hs_a, cs_a, tc_a, t)
+        inputs.append(buf.hs[:, 1:].reshape(K, n, -1))  # (K, TB, H), a view
+    return inputs
+
+
+def lstm_backward(
+    net: StackedEncoders, bufs: _Buffers, inputs: list[torch.Tensor], dh: torch.Tensor
+) -> torch.Tensor:
+    """Back through every LSTM layer of ``lstm_forward``'s chunk (truncated at its start):
+    dL/d(top output) dh (K, TB, H) -> every layer's gradients into ``net.grads``; returns
+    dL/d(the first layer's input) (K, TB, in)."""
+    K, T, B = bufs.da.shape[:3]
+    n, grads = T * B, net.grads
     rec_back, da, dc = bufs.rec_back, bufs.da, bufs.dc
     rec_back_a, da_a, dc_a = rec_back.numpy(), da.numpy(), dc.numpy()
     da2 = da.view(K, n, -1)  # (K, TB, 4H)
@@ -313,19 +365,23 @@ def forward_backward(
         rec_back.zero_()
         act_a, _, cs_a, tc_a = buf.arrays
         dh_a, db_a = dh4.numpy(), db.numpy()
+        small = whh.detach().numpy() if B <= SMALL_STREAMS else None  # (K, 4H, H)
         for t in range(T - 1, -1, -1):
             cell_backward(dh_a, rec_back_a, act_a, cs_a, tc_a, dc_a, da_a, db_a, t)
-            if t:
+            if t and small is None:
                 torch.bmm(bufs.da_steps[t], whh, out=rec_back)  # (K, B, H)
+            elif t:
+                step_product(da_a, t, small, rec_back_a)
         weight_grad(da2, inputs[layer], grads[iwih])
         weight_grad(da2, buf.hs[:, :T].reshape(K, n, -1), grads[iwhh])
         grads[ibhh].copy_(grads[ibih])
         dh = torch.bmm(da2, wih)  # (K, TB, in): dL/d(layer input)
-    dpre = relu_grad_(dh, inputs[0])  # through sensor_in's ReLU
-    wi, bi = net.linear_index[i_in]
-    weight_grad(dpre, x_in, grads[wi])
-    torch.sum(dpre, 1, keepdim=True, out=grads[bi])
-    return [(buf.hs[:, T].clone(), buf.cs[:, T].clone()) for buf in bufs.layers]
+    return dh
+
+
+def carried(bufs: _Buffers) -> State:
+    """The state after the chunk, per layer (h, c) (K, B, H), copied out of the buffers."""
+    return [(buf.hs[:, -1].clone(), buf.cs[:, -1].clone()) for buf in bufs.layers]
 
 
 def train_epoch_stacked_recurrent(
