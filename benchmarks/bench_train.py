@@ -48,6 +48,7 @@ from sensorimotor.learn.fast.cpu import keep_freed_memory
 from sensorimotor.learn.fast.private import adam_
 from sensorimotor.learn.fast.stacked import StackedEncoders, train_epoch_stacked
 from sensorimotor.learn.fast.stacked_lstm import train_epoch_stacked_recurrent
+from sensorimotor.learn.fast.stacked_open_loop import train_epoch_stacked_open_loop
 from sensorimotor.learn.models import build_model
 from sensorimotor.sim.database import generate, scale_motors, scale_sensors
 from sensorimotor.sim.world import load_world
@@ -190,6 +191,14 @@ def _rec_worker(kind, k, n, warm_n, keep, barrier, results, device="cpu", graphs
         def epoch(s, m):
             train_epoch_recurrent(
                 model, opt, s, m, c.batch_size, c.horizon, c.ahead, c.ahead_every
+            )
+    elif build_model(kind).config.motor_memory:  # its own streams, horizon and open loop
+        net = StackedEncoders.from_models([build_model(kind, seed=sd) for sd in range(k)])
+        c = TrainConfig.of(kind)
+
+        def epoch(s, m):
+            train_epoch_stacked_open_loop(
+                net, s, m, c.batch_size, c.horizon, c.ahead, c.ahead_every
             )
     else:
         net = StackedEncoders.from_models([build_model(kind, seed=sd) for sd in range(k)])
@@ -394,6 +403,12 @@ def main() -> None:
         path = f"plain loop, {c.ahead} ahead from every {c.ahead_every}, BPTT {c.horizon}"
         target = f"vs Rec-SM's plain; {epochs:.0f} paper epochs in {PAPER_SEED_MINUTES} min"
         row("rec-sma", path, total, total, cpu, rec_sm_plain, target)
+        plain = total
+        for k, workers in ((1, 1), (5, 1), (5, 2)):  # issue 38 item 2: stacked seeds
+            total, cpu = bench_rec("rec-sma", k, rec_n, warm_n, workers, repeats)
+            path = f"stacked, K = {k}" + (f", {workers} processes" if workers > 1 else "")
+            target = f"{total / plain:.2f}x Rec-SMA's plain loop"
+            row("rec-sma", path, total / (k * workers), total, cpu, rec_sm_plain, target)
         console.print(f"  rec-sma done ({load()})")
 
     console.print(table)
