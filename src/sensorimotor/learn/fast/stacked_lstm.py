@@ -218,7 +218,8 @@ def gate_scale(h: int) -> np.ndarray:
     return scale
 
 
-def _buffers(net: StackedEncoders, t: int, b: int) -> _Buffers:
+def chunk_buffers(net: StackedEncoders, t: int, b: int) -> _Buffers:
+    """The tensors of a chunk of ``t`` steps of ``b`` streams, made once and reused."""
     cache = net.__dict__.setdefault("_lstm_buffers", {})
     key = (net.k, t, b)
     if key not in cache:
@@ -274,7 +275,7 @@ def forward_backward(
     K, plan, grads = net.k, net.layers, net.grads
     T, B, _ = xs.shape
     n = T * B
-    bufs = _buffers(net, T, B)
+    bufs = chunk_buffers(net, T, B)
 
     # sensor_in: (K, TB, 5) -> relu -> (K, TB, 16)
     x_in = xs.reshape(1, n, -1).expand(K, n, -1)

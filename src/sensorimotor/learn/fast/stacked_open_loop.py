@@ -32,8 +32,8 @@ from sensorimotor.learn.fast.products import linear, matmul, weight_grad
 from sensorimotor.learn.fast.stacked import StackedEncoders
 from sensorimotor.learn.fast.stacked_lstm import (
     State,
-    _buffers,
     carried,
+    chunk_buffers,
     lstm_backward,
     lstm_forward,
 )
@@ -76,14 +76,15 @@ def forward_backward(
     K, plan, grads = net.k, net.layers, net.grads
     T, B, _ = xs.shape
     n = T * B
-    bufs = _buffers(net, T, B)
+    bufs = chunk_buffers(net, T, B)
     lstm_state, last = (None, None) if state is None else state
 
     # the memory: [relu(sensor_in(s_t)), m_{t-1}] (K, TB, 18) -> LSTM -> z_s (K, TB, 10)
     x_in = xs.reshape(1, n, -1).expand(K, n, -1)
     (i_in,) = net.chains["sensor_in"]
     x = linear(x_in, *plan[i_in]).relu_()  # (K, TB, 16)
-    before = torch.cat([xm.new_zeros(1, B, 2) if last is None else last[None], xm[: T - 1]])
+    first = xm.new_zeros(1, B, xm.shape[-1]) if last is None else last[None]  # m_{-1}
+    before = torch.cat([first, xm[: T - 1]])  # m_{t-1}: (T, B, 2)
     if not c.reads_motors:
         before = torch.zeros_like(before)  # the ablation: the memory reads no command
     memory_in = torch.cat([x, before.reshape(1, n, -1).expand(K, n, -1)], dim=-1)
@@ -96,20 +97,19 @@ def forward_backward(
               for i in net.chains[ch] for j in net.linear_index[i]}  # fmt: skip
     z_leaf = z.view(K, T, B, -1).detach().requires_grad_()  # (K, T, B, 10)
     with torch.enable_grad():
-        span = len(xm) - ahead + 1  # T
         z_m = _chain(net, leaves, "motor_encoder", xm.reshape(1, -1, 2).expand(K, -1, -1))
         z_m = z_m.view(K, len(xm), B, -1)  # (K, T + A - 1, B, 5)
         belief = z_leaf[:, ::every]  # (K, T', B, 10)
         t_ = belief.shape[1]
         zz = []  # the predictor's input of every k: the belief and the command's code
         for k in range(ahead):
-            zz.append(torch.cat([belief, z_m[:, k : k + span : every]], dim=-1))  # (K, T', B, 15)
+            zz.append(torch.cat([belief, z_m[:, k : k + T : every]], dim=-1))  # (K, T', B, 15)
             if k + 1 < ahead:
                 flat = zz[-1].reshape(K, t_ * B, -1)
                 belief = belief + _chain(net, leaves, "transition", flat).view(K, t_, B, -1)
         # every k's prediction in one pass: (K, A T' B, 15) -> (K, A, T', B, 5) ~ s_{t+k+1}
         pred = _chain(net, leaves, "predictor", torch.stack(zz, 1).view(K, ahead * t_ * B, -1))
-        target = torch.stack([y[k : k + span : every] for k in range(ahead)])  # (A, T', B, 5)
+        target = torch.stack([y[k : k + T : every] for k in range(ahead)])  # (A, T', B, 5)
         err = (pred.view(K, ahead, t_, B, -1) - target).square().sum(-1) * weight  # (K, A, T', B)
         count = weight.sum()
         per_seed = err.sum((1, 2, 3))  # (K,)
