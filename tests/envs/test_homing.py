@@ -11,7 +11,12 @@ import pytest
 from conftest import assert_one_line_error
 from sensorimotor.envs import TASKS, LaserTaskEnv
 from sensorimotor.envs.laser_world import MAX_STEP, MAX_TURN
-from sensorimotor.envs.tasks import EXCURSION_EXTRA
+from sensorimotor.envs.tasks import (
+    EXCURSION_EXTRA,
+    guess_from_handover,
+    handovers,
+    memoryless_bound,
+)
 from sensorimotor.errors import InputError
 from sensorimotor.sim import core as sim
 from sensorimotor.sim.world import load_world
@@ -117,3 +122,21 @@ def test_the_gymnasium_id_is_registered_with_the_budget():
     assert env.spec.max_episode_steps == TASKS["homing"].budget == 200
     _, info = env.reset(seed=1)
     assert "excursion" in info
+
+
+def test_the_hand_over_room_tells_a_memoryless_agent_most_of_the_way_home():
+    """Rooms1's rooms are a chain (southwest - northwest - east): a start at an end is handed
+    over in the middle, and a start in the middle at an end; guessing from the hand-over room
+    wins every episode but those that start at the end not guessed, about 0.75."""
+    counts = handovers("rooms1", 200)
+    sw, nw, east = range(3)
+    assert counts.sum() == 200
+    assert counts[nw, nw] == 0  # the middle: handed over at an end
+    assert counts[nw].sum() > 0
+    assert counts[sw, nw] == counts[sw].sum() > 0  # the ends: handed over in the middle
+    assert counts[east, nw] >= 0.95 * counts[east].sum()
+    assert 0.6 < memoryless_bound(counts) < 0.9
+    assert TASKS["homing"].no_memory is guess_from_handover  # what rl.json records
+    assert TASKS["corner"].no_memory is None
+    # by hand: the columns' largest counts 3 + 5 + 5 of 20
+    assert memoryless_bound(np.array([[0, 5, 0], [3, 0, 4], [1, 2, 5]])) == 13 / 20

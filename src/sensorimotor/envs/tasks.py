@@ -88,6 +88,10 @@ class Task:
     (E, 3)}``, row t: the reading at pose t and the command taken from it; the agent's first
     observation is read where it ends), or None when it failed (the start is redrawn).
     ``reset``'s ``info["excursion"]`` holds it, for a feature wrapper to feed a memory."""
+    no_memory: Callable[[str | World], dict] | None = None
+    """What an agent without memory reaches in a world with no learning at all (``{"what",
+    "success", ...}``), where the task knows it: the baseline ``rl.json`` shows beside a task
+    that asks for a memory."""
 
     @property
     def env_id(self) -> str:
@@ -256,6 +260,41 @@ def drive_out(env: LaserTaskEnv) -> dict | None:
     return None
 
 
+HANDOVER_RESETS = 1_000  # homing's resets counted for its memoryless baseline (about 2 s)
+
+
+def handovers(world: str | World, resets: int, seed: int = 0) -> np.ndarray:
+    """(rooms, rooms) counts of (start room, room at the hand-over) over ``resets`` resets of
+    the homing task in ``world`` (seeds ``seed``, ``seed + 1``, ...): what the room an agent
+    is handed over in says about the room it must come back to."""
+    env = LaserTaskEnv("homing", world)
+    counts = np.zeros((len(env.world.rooms),) * 2, dtype=np.int64)
+    for i in range(resets):
+        env.reset(seed=seed + i)
+        counts[env.start_room, env._room()] += 1
+    return counts
+
+
+def memoryless_bound(counts: np.ndarray) -> float:
+    """The share of episodes won by guessing the likeliest start room from the hand-over room
+    (sum over hand-over rooms of the largest count in its column, over all): what an agent
+    without memory reaches if it knows the room it is in and goes straight to that guess. Not
+    an upper bound on memoryless agents (one may tour the rooms within the budget)."""
+    return float(counts.max(axis=0).sum() / counts.sum())
+
+
+def guess_from_handover(world: str | World, resets: int = HANDOVER_RESETS) -> dict:
+    """Homing's memoryless baseline (``Task.no_memory``): ``handovers`` over ``resets``
+    resets and the share ``memoryless_bound`` wins."""
+    counts = handovers(world, resets)
+    return {
+        "what": "best guess of the start room from the hand-over room (no memory, no learning)",
+        "success": memoryless_bound(counts),
+        "resets": resets,
+        "counts": counts.tolist(),
+    }
+
+
 CORNER = register(
     Task("corner", 200, _corner_progress, _corner_done, good_start=_not_at_corner,
          measure=_corner_distance)
@@ -266,7 +305,7 @@ DOORWAY = register(
 EXPLORE = register(Task("explore", 400, _new_cells, _covered, success_reward=0.0, terminates=False))
 HOMING = register(
     Task("homing", HOMING_BUDGET, _no_reward, _in_start_room, good_start=_in_a_room,
-         check=_two_rooms, excursion=drive_out)
+         check=_two_rooms, excursion=drive_out, no_memory=guess_from_handover)
 )  # fmt: skip
 
 

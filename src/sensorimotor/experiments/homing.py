@@ -18,8 +18,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from sensorimotor.errors import InputError
 from sensorimotor.experiments.rl import grid_key
 from sensorimotor.learn.models import REC_SM, REC_SMA
@@ -35,7 +33,6 @@ FEATURES = (ORACLE, "raw", REC_SM, REC_SMA, "random")
 BASELINES = ("raw", REC_SM)  # the strongest of these is the baseline beside Rec-SMA
 THRESHOLDS = {"rec_sma": 0.8, "of_oracle": 0.1, "raw": 0.4}  # issue 37's "done when"
 WHERE = "issue 37 (a map that finds the rooms, an agent that needs a memory), before any agent"
-RESETS = {"smoke": 100}  # the task's resets counted for the memoryless bound (else 1,000)
 
 
 @dataclass(frozen=True)
@@ -100,39 +97,12 @@ def run(ctx) -> dict:
     rl = run_grid(cfg, folder, run_agents=run_agents)
     for r in rl["results"].values():
         del r["curve"]  # in the folder's rl.json and figure
-    resets = RESETS.get(rep.scale.name, 1_000)
-    counts = handovers(WORLD, resets)
     return {
         "headline": HEADLINE,
         "folder": folder.relative_to(rep.out).as_posix(),
-        "memoryless": {
-            "resets": resets, "counts": counts.tolist(), "bound": memoryless_bound(counts)
-        },
         "rl": rl,
         "verdicts": [v.to_dict() for v in verdicts(rl)],
     }
-
-
-def handovers(world: str, resets: int, seed: int = 0) -> np.ndarray:
-    """(rooms, rooms) counts of (start room, room at the hand-over) over ``resets`` resets of
-    the homing task in ``world`` (seeds ``seed``, ``seed + 1``, ...): what the room an agent
-    is handed over in says about the room it must come back to."""
-    from sensorimotor.envs.tasks import LaserTaskEnv
-
-    env = LaserTaskEnv(TASK, world)
-    counts = np.zeros((len(env.world.rooms),) * 2, dtype=np.int64)
-    for i in range(resets):
-        env.reset(seed=seed + i)
-        counts[env.start_room, env._room()] += 1
-    return counts
-
-
-def memoryless_bound(counts: np.ndarray) -> float:
-    """The share of episodes won by guessing the likeliest start room from the hand-over room
-    (sum over hand-over rooms of the largest count in its column, over all): what an agent
-    without memory reaches if it knows the room it is in and goes straight to that guess. Not
-    an upper bound on memoryless agents (one may tour the rooms within the budget)."""
-    return float(counts.max(axis=0).sum() / counts.sum())
 
 
 def verdicts(rl: dict) -> list[Verdict]:
@@ -177,9 +147,8 @@ def section(rep, found: dict) -> list[Block]:
         [label.get(f, f), fmt_ci(r[HEADLINE]), f"{r[HEADLINE]['iqm']:.2f}", fmt_ci(r["success"])]
         for f, r in res.items()
     ]
-    guess = found["memoryless"]
-    rows.append(["best guess from the hand-over room (no memory, no learning)",
-                 f"{guess['bound']:.2f}", "", ""])  # fmt: skip
+    guess = rl["no_memory"]  # envs.tasks.guess_from_handover
+    rows.append([guess["what"], f"{guess['success']:.2f}", "", ""])
     blocks = [
         h(2, "Does an agent need a memory to come back? (homing)"),
         p(
@@ -196,12 +165,12 @@ def section(rep, found: dict) -> list[Block]:
         p(
             "The room the agent is handed over in tells part of the way home: over "
             f"{guess['resets']:,} resets of the task, guessing the likeliest start room from it "
-            f"wins {guess['bound']:.2f} of the episodes (the last row; an agent without memory "
+            f"wins {guess['success']:.2f} of the episodes (the last row; an agent without memory "
             "that knows which room it is in and goes straight there). An agent without memory "
             "can therefore come home in at least that share, above the issue's "
             f"{THRESHOLDS['raw']} for raw: that verdict can hold only where raw learns less "
             "than it could, and "
-            f"the oracle can beat a memoryless agent by at most {1 - guess['bound']:.2f}."
+            f"the oracle can beat a memoryless agent by at most {1 - guess['success']:.2f}."
         ),
         image(
             Path(rep.out) / found["folder"] / "rl.png",

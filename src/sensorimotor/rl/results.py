@@ -81,7 +81,7 @@ def verdict_holds(v: dict) -> bool | None:
 
 def summary_lines(rl: dict) -> list[str]:
     """One line per feature set of ``rl.json``: final success, its CI and IQM, transfer; then
-    the verdicts."""
+    the verdicts; last, the task's memoryless baseline where it has one."""
     lines = []
     scores = {"success": "deterministic", "success_stochastic": "stochastic"}
     for score in sorted(scores, key=lambda k: k != HEADLINE):  # the headline score first
@@ -99,6 +99,9 @@ def summary_lines(rl: dict) -> list[str]:
             lines.append(f"  {CLAIM}: {yes}")
         if verdict_holds(v["pose_beats_random"]) is not None:
             lines.append(f"  pose - random: {fmt_ci(v['pose_beats_random']['difference'], '+')}")
+    base = rl.get("no_memory")  # rl.json before Task.no_memory: none
+    if base is not None:
+        lines.append(f"without memory or learning: {base['what']}: {base['success']:.2f}")
     return lines
 
 

@@ -423,8 +423,10 @@ def spread(agents: list[dict]) -> dict | None:
 
 def aggregate(config: RLConfig, agents: dict[str, list[dict]]) -> dict:
     """``rl.json``: per feature set, the final success and return over seeds (``summary``), the
-    learning curve (mean and CI at each evaluation) and the transfer scores."""
+    learning curve (mean and CI at each evaluation) and the transfer scores; the task's
+    memoryless baseline (``Task.no_memory``) where it has one."""
     results = {}
+    no_memory = TASKS[config.task].no_memory  # the task's memoryless baseline, if it has one
     for features, rs in agents.items():
         curve_steps = rs[0]["curve"]["steps"]
         curve = {"steps": curve_steps}
@@ -454,6 +456,7 @@ def aggregate(config: RLConfig, agents: dict[str, list[dict]]) -> dict:
         "version": __version__,
         "headline": HEADLINE,
         "results": results,
+        "no_memory": None if no_memory is None else no_memory(config.world),
         "verdicts": {
             k: verdicts(results, k, config.task, config.ppo)
             for k in ("success", "success_stochastic")
