@@ -517,26 +517,36 @@ def test_every_command_declares_what_it_writes():
                 assert p.name in _outputs(cmd), (words, p.name)
 
 
-def test_every_database_a_command_reads_is_declared_and_refused_before_the_imports(
+READ_BEFORE_IMPORTS = {  # parameter -> what its refusal says of a missing path
+    "data": "database (.npz) not found",
+    "fit_data": "database (.npz) not found",
+    "run": "run folder not found",
+    "run_dir": "run folder not found",
+    "run_dirs": "run folder not found",
+}
+
+
+def test_every_database_and_run_a_command_reads_is_refused_before_the_imports(
     baseline, tmp_path
 ):
-    """``@reads`` (``cli.app.reads``) names every database parameter of every command, and a
-    missing database is refused in one line, exit 2, before torch is imported (seconds): run
-    in a fresh interpreter, every such command one after another."""
+    """``@reads`` (``cli.app.reads``) names every database and run-folder parameter of every
+    command, and a missing one is refused in one line, exit 2, before torch is imported
+    (seconds): run in a fresh interpreter, every such command one after another."""
     cases = []
     for words, cmd in _commands():
         declared = getattr(cmd.callback, "__reads__", {})
         for param in cmd.params:
-            if param.name in ("data", "fit_data"):
+            if param.name in READ_BEFORE_IMPORTS:
                 assert param.name in declared, f"{' '.join(words)}: {param.name} not in @reads"
-                missing = str(tmp_path / f"missing_{param.name}.npz")
+                missing = str(tmp_path / f"missing_{param.name}")
                 args = _argv(words, cmd, baseline, tmp_path, {param.name: missing})
-                cases.append(([str(a) for a in args], missing))
-    assert len(cases) >= 8  # train, evaluate, table, analyze x2, map x2, plot x2
+                line = f"error: {missing}: {READ_BEFORE_IMPORTS[param.name]}"
+                cases.append(([str(a) for a in args], line))
+    assert len(cases) >= 12  # train, evaluate x2, table x2, analyze x3, map x3, plots x2
     script = (
         "import json, sys\n"
         "from sensorimotor.cli import run\n"
-        "for argv, missing in json.loads(sys.argv[1]):\n"
+        "for argv, _ in json.loads(sys.argv[1]):\n"
         "    assert run(argv) == 2, argv\n"
         "assert 'torch' not in sys.modules, 'torch imported before the refusal'\n"
     )
@@ -546,9 +556,7 @@ def test_every_database_a_command_reads_is_declared_and_refused_before_the_impor
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
-    assert len(lines) == len(cases), proc.stderr
-    for line, (_, missing) in zip(lines, cases, strict=True):
-        assert line == f"error: {missing}: database (.npz) not found"
+    assert lines == [line for _, line in cases]
     assert not (tmp_path / "out").exists()
 
 

@@ -28,6 +28,8 @@ from pathlib import Path
 
 from sensorimotor.errors import InputError
 
+DATABASE = "database (.npz)"  # what the messages call the inputs every command reads
+RUN_FOLDER = "run folder"
 MAX_TEXT_BYTES = 64 << 20  # a world file, a JSON file: far beyond any real one
 MAX_NESTING = 64  # JSON and TOML: tables and lists within each other
 
@@ -188,6 +190,16 @@ def check_input(path: str | Path, what: str, max_bytes: int | None = None) -> Pa
         raise InputError(f"{path}: is {_kind(mode)}, not a {what}")
     if max_bytes is not None and path.stat().st_size > max_bytes:
         raise InputError(f"{path}: {path.stat().st_size:,} bytes, too large for a {what}")
+    return path
+
+
+def check_input_dir(path: str | Path, what: str) -> Path:
+    """Refuse an input folder that is missing or not a folder; ``what`` names it."""
+    path = Path(path)
+    mode = _mode(path, what)
+    if not stat.S_ISDIR(mode):
+        kind = "a file" if stat.S_ISREG(mode) else _kind(mode)
+        raise InputError(f"{path}: is {kind}, not a {what}")
     return path
 
 

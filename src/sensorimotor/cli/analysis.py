@@ -15,6 +15,7 @@ from sensorimotor.cli.app import (
     MAX_CONTEXTS,
     MAX_PAIRS,
     N_CONTEXTS,
+    RUN,
     app,
     err_console,
     progress,
@@ -25,7 +26,7 @@ from sensorimotor.sim import MAX_SEED
 
 
 @app.command()
-@reads(data=DATABASE, fit_data=DATABASE)
+@reads(run=RUN, data=DATABASE, fit_data=DATABASE)
 @writes(folder="out")
 def analyze(
     run: Annotated[
@@ -77,7 +78,7 @@ def analyze(
 
 
 @app.command("map")
-@reads(data=DATABASE, fit_data=DATABASE)
+@reads(run=RUN, data=DATABASE, fit_data=DATABASE)
 @writes(folder="out")
 def map_cmd(
     run: Annotated[str, typer.Argument(help="A run folder, or `raw` for the readings / range.")],

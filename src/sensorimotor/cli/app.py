@@ -8,6 +8,7 @@ import inspect
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated
 
@@ -15,6 +16,7 @@ import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
+from sensorimotor import files
 from sensorimotor.errors import InputError
 from sensorimotor.learn.kinds import KINDS
 from sensorimotor.sim import MAX_LASER_RANGE
@@ -63,29 +65,40 @@ def writes(folder: str | None = None, files: tuple[str, ...] = (), locked_inside
     return decorate
 
 
-DATABASE = "database (.npz)"  # what ``sim.database.load_database`` calls its input
+@dataclass(frozen=True)
+class Input:
+    """What a command's path parameter reads: a file or a folder, named as the library's
+    messages name it, and the words it takes instead of a path (``raw``)."""
+
+    what: str
+    folder: bool = False
+    words: tuple[str, ...] = ()
 
 
-def reads(**inputs: str):
-    """Declare the input files a command reads, parameter -> what it is (as the library names
-    it; a list parameter: each path): each is checked through ``files.check_input`` before the
-    command's body, so a missing or wrong input is refused in one line before its imports
-    (torch alone takes seconds). The library checks them again where it opens them."""
+DATABASE = Input(files.DATABASE)
+RUN = Input(files.RUN_FOLDER, folder=True, words=("raw",))  # analysis.analyze.RAW
+
+
+def reads(**inputs: Input):
+    """Declare what a command's path parameters read (a list parameter: each path): each is
+    checked through ``files.check_input`` or ``files.check_input_dir`` before the command's
+    body, so a missing or wrong input is refused in one line before its imports (torch alone
+    takes seconds). The library checks them again where it opens them."""
 
     def decorate(fn):
         signature = inspect.signature(fn)
 
         @functools.wraps(fn)
         def command(*args, **kwargs):
-            from sensorimotor.files import check_input
-
             bound = signature.bind(*args, **kwargs)
             bound.apply_defaults()
-            for name, what in inputs.items():
+            for name, given in inputs.items():
                 value = bound.arguments[name]
                 for path in value if isinstance(value, list) else [value]:
-                    if path is not None:
-                        check_input(path, what)
+                    if path is None or str(path) in given.words:
+                        continue
+                    check = files.check_input_dir if given.folder else files.check_input
+                    check(path, given.what)
             return fn(*args, **kwargs)
 
         command.__reads__ = dict(inputs)

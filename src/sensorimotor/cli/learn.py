@@ -12,6 +12,7 @@ from sensorimotor.cli.app import (
     DATABASE,
     MAX_EPOCHS,
     MAX_MINUTES,
+    RUN,
     ModelArg,
     _check_model,
     app,
@@ -182,7 +183,7 @@ def _train(model, data: Path, out: Path, config, seeds: list[int], note, resume,
 
 
 @app.command()
-@reads(data=DATABASE)
+@reads(run_dir=RUN, data=DATABASE)
 @writes(files=("json_out",))
 def evaluate(
     run_dir: Annotated[Path, typer.Argument(help="Run folder from `sensorimotor train`.")],
@@ -221,7 +222,7 @@ def evaluate(
 
 
 @app.command()
-@reads(data=DATABASE)
+@reads(run_dirs=RUN, data=DATABASE)
 @writes(files=("json_out",))
 def table(
     run_dirs: Annotated[list[Path], typer.Argument(help="Run folders (several seeds allowed).")],

@@ -15,7 +15,7 @@ import numpy as np
 import torch
 
 from sensorimotor.errors import InputError
-from sensorimotor.files import read_json
+from sensorimotor.files import RUN_FOLDER, check_input_dir, read_json
 from sensorimotor.learn.models import ModelConfig, SensorimotorEncoder, build_model
 from sensorimotor.learn.runs import load_weights_into, torch_load
 from sensorimotor.sim.core import SensorLayout
@@ -140,11 +140,7 @@ class Run:
 
 def load_run(run_dir: str | Path, device: str | torch.device = "cpu") -> Run:
     """Load a run folder's config and best weights; InputError naming the file if anything is off."""
-    run_dir = Path(run_dir)
-    if run_dir.is_file():
-        raise InputError(f"{run_dir}: is a file, not a run folder (made by `sensorimotor train`)")
-    if not run_dir.is_dir():
-        raise InputError(f"{run_dir}: run folder not found")
+    run_dir = check_input_dir(run_dir, RUN_FOLDER)
     cfg_path, weights = run_dir / "config.json", run_dir / "model.pt"
     if not cfg_path.is_file():
         raise InputError(f"{cfg_path}: missing (not a run folder made by `sensorimotor train`)")

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from sensorimotor.errors import InputError
-from sensorimotor.files import atomic_path, check_input
+from sensorimotor.files import DATABASE, atomic_path, check_input
 from sensorimotor.sim.core import (
     BEHAVIOURS,
     DEFAULT_LAYOUT,
@@ -274,7 +274,7 @@ def save_database(db: Database, path: str | Path) -> Path:
 
 def load_database(path: str | Path) -> Database:
     """Read and check a database; any problem is an InputError naming the file."""
-    path = check_input(path, "database (.npz)")
+    path = check_input(path, DATABASE)
     try:
         # our own file handle: np.load leaks its own when a damaged zip makes it raise
         with open(path, "rb") as f:
