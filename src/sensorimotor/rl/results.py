@@ -101,7 +101,7 @@ def summary_lines(rl: dict) -> list[str]:
             lines.append(f"  pose - random: {fmt_ci(v['pose_beats_random']['difference'], '+')}")
     base = rl.get("no_memory")  # rl.json before Task.no_memory: none
     if base is not None:
-        lines.append(f"without memory or learning: {base['what']}: {base['success']:.2f}")
+        lines.append(f"{base['what']}: {base['success']:.2f}")
     return lines
 
 
