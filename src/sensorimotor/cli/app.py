@@ -16,8 +16,9 @@ import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-from sensorimotor import files
 from sensorimotor.errors import InputError
+from sensorimotor.files import DATABASE as DATABASE_WHAT
+from sensorimotor.files import RUN_FOLDER, check_input, check_input_dir
 from sensorimotor.learn.kinds import KINDS
 from sensorimotor.sim import MAX_LASER_RANGE
 from sensorimotor.version import __version__
@@ -75,8 +76,8 @@ class Input:
     words: tuple[str, ...] = ()
 
 
-DATABASE = Input(files.DATABASE)
-RUN = Input(files.RUN_FOLDER, folder=True, words=("raw",))  # analysis.analyze.RAW
+DATABASE = Input(DATABASE_WHAT)
+RUN = Input(RUN_FOLDER, folder=True, words=("raw",))  # analysis.analyze.RAW
 
 
 def reads(**inputs: Input):
@@ -97,7 +98,7 @@ def reads(**inputs: Input):
                 for path in value if isinstance(value, list) else [value]:
                     if path is None or str(path) in given.words:
                         continue
-                    check = files.check_input_dir if given.folder else files.check_input
+                    check = check_input_dir if given.folder else check_input
                     check(path, given.what)
             return fn(*args, **kwargs)
 
