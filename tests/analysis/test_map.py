@@ -4,6 +4,7 @@ the cloned HMM, what it predicts and where it thinks the agent is."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -23,8 +24,10 @@ from sensorimotor.analysis.map.cells import (
 )
 from sensorimotor.analysis.map.chmm import (
     CloneHMM,
+    Transitions,
     _backward_counts,
     _forward,
+    check_size,
     fit_chmm,
     log_likelihood,
 )
@@ -63,6 +66,12 @@ def test_actions_bin_the_behaviour_and_the_turn_around_is_its_own():
     motors = np.stack([np.zeros_like(r), r], axis=1)
     names = [ACTION_NAMES[a] for a in action_bins(motors)]
     assert names == ["turn", "turn", "right", "straight", "straight", "straight", "left"]
+    # The lattice's and the grid's commands as recorded (float32): a quarter turn is a turn to
+    # one side, the grid reflex's 3 pi/2 a right turn, every turn-around near pi a turn.
+    turns = np.float32([np.pi / 6, -np.pi / 6, 5 * np.pi / 6, 7 * np.pi / 6, np.pi / 2, -np.pi / 2,
+                        np.pi, 3 * np.pi / 2])  # fmt: skip
+    names = [ACTION_NAMES[a] for a in action_bins(np.stack([np.zeros_like(turns), turns], axis=1))]
+    assert names == ["left", "right", "turn", "turn", "left", "right", "turn", "right"]
 
 
 def test_unigram_bits_are_the_entropy_by_hand():
@@ -98,7 +107,7 @@ def test_the_map_recovers_an_aliased_ring():
     train, test = slice(0, 10_000), slice(10_000, None)
     base = baseline_bits(obs[train], actions[train], obs[test], actions[test], 3, 3)
     model = fit_chmm(obs[train], actions[train], 3, 6, 3, seed=0)
-    nats = -log_likelihood(model.T, obs[test], actions[test], 6)[1:].mean()
+    nats = -log_likelihood(model.T, obs[test], actions[test])[1:].mean()
     truth = 2 / 3 * -(SLIP * np.log2(SLIP) + (1 - SLIP) * np.log2(1 - SLIP))
     assert base["markov"] > truth + 0.4  # the observations alone do not say where one is
     assert nats / np.log(2) < truth + 0.1
@@ -114,11 +123,14 @@ def test_the_clone_kernels_match_a_plain_hmm_over_every_state():
     T /= T.sum(axis=2, keepdims=True)
     cells, actions = rng.integers(0, K, n), rng.integers(0, A, n)
     logp, counts = reference.forward_backward(T, cells, actions, C)
-    assert log_likelihood(T, cells, actions, C)[1:] == pytest.approx(logp, rel=1e-10)
+    blocked = Transitions.from_dense(T, C)
+    assert log_likelihood(blocked, cells, actions)[1:] == pytest.approx(logp, rel=1e-10)
     alpha = np.empty((n, C))
-    _forward(T, cells, actions, C, alpha)
-    mine = np.zeros_like(T)
-    _backward_counts(T, cells, actions, C, alpha, mine)
+    ids = blocked.ids(cells, actions)
+    _forward(blocked.blocks, ids, blocked.rest, blocked.targets, cells, actions, C, alpha)
+    mine = np.zeros_like(blocked.blocks)
+    _backward_counts(blocked.blocks, ids, C, alpha, mine)
+    mine = replace(blocked, blocks=mine).dense()
     assert mine == pytest.approx(counts, abs=1e-10)
     assert mine.sum() == pytest.approx(n - 1)
 
@@ -126,9 +138,9 @@ def test_the_clone_kernels_match_a_plain_hmm_over_every_state():
 def test_the_map_is_deterministic_given_its_seed():
     obs, actions, _ = ring_walk(2_000)
     a, b = (fit_chmm(obs, actions, 3, 4, 3, seed=5) for _ in range(2))
-    assert np.array_equal(a.T, b.T)
+    assert np.array_equal(a.T.blocks, b.T.blocks)
     c = fit_chmm(obs, actions, 3, 4, 3, seed=6)
-    assert not np.array_equal(a.T, c.T)
+    assert not np.array_equal(a.T.blocks, c.T.blocks)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -208,16 +220,16 @@ def test_the_context_split_gives_a_one_clone_map_the_room():
     plain = fit_chmm(train.cells, train.actions, 3, 1, 1, seed=0)
     split = fit_chmm(train.cells, train.actions, 3, 1, 1, seed=0, context=context, n_contexts=2)
     assert split.n_clones == 2
-    assert split.T.shape == (1, 6, 6)
-    assert split.T.sum(axis=2) == pytest.approx(1.0)
-    assert plain.T_em.shape == split.T_em.shape == (1, 3, 3)  # EM's map, before the split
+    assert split.T.dense().shape == (1, 6, 6)
+    assert split.T.dense().sum(axis=2) == pytest.approx(1.0)
+    assert plain.T_em.dense().shape == split.T_em.dense().shape == (1, 3, 3)  # before the split
     plain_rooms = localisation(plain, train, test, ring_world())[0]["room_accuracy"]
     rooms = localisation(split, train, test, ring_world())[0]["room_accuracy"]
     assert plain_rooms["map"] == pytest.approx(plain_rooms["cells"])
     assert rooms["cells"] < 0.65
     assert rooms["map"] > 0.85
     bits = [
-        -log_likelihood(m.T, test.cells, test.actions, m.n_clones)[1:].mean()
+        -log_likelihood(m.T, test.cells, test.actions)[1:].mean()
         for m in (plain, split)
     ]
     assert bits[1] < bits[0] - 0.005  # nats: knowing the room predicts the next cell (at most 0.03)
@@ -242,10 +254,62 @@ def test_goal_distances_follow_the_map_to_the_goal():
     T[1, [0, 1, 2], [1, 2, 3]] = 1.0
     T[1, [0, 1, 2], 0] = 0.0
     active = np.array([True, True, True, True, False])
-    model = CloneHMM(T, 1, active, T, {}, T)
+    blocked = Transitions.from_dense(T, 1)
+    model = CloneHMM(blocked, active, blocked.blocks, {}, blocked)
     d = goal_distances(model, np.array([3]))
     assert d[:4].tolist() == pytest.approx([3, 2, 1, 0])
     assert np.isinf(d[4])
+
+
+def test_a_map_whose_blocks_would_not_fit_is_refused_before_it_is_fitted():
+    rng = np.random.default_rng(0)
+    cells, actions = rng.integers(0, 200, 50_000), rng.integers(0, 4, 50_000)
+    check_size(cells, actions, 200, 10, 4)  # about 45,000 blocks of 10 x 10: 36 MB
+    with pytest.raises(InputError, match=r"GB .*blocks of 100 x 100.*fewer clones"):
+        fit_chmm(cells, actions, 200, 50, 4, context=cells % 2, n_contexts=2)
+
+
+def test_the_blocked_store_is_the_dense_matrix():
+    """A fit keeps blocks for the training triples only; EM from the same random start equals
+    the textbook EM over the dense matrix, and every use of T (a step's block, the expectation
+    one step on, the planner's distances with their pseudocount jumps) equals the dense one."""
+    obs, actions, _ = ring_walk(400)
+    K, C, A = 3, 6, 3
+    model = fit_chmm(obs, actions, K, C, A, seed=3, em_iters=8, tol=-1.0)
+    seen = len(np.unique((obs[:-1] * A + actions[:-1]) * K + obs[1:]))
+    assert model.T.blocks.shape == (seen, C, C)
+    assert seen < K * A * K
+    T = np.random.default_rng(3).random((A, K * C, K * C))
+    for _ in range(8):
+        T = T / T.sum(axis=2, keepdims=True)
+        T = reference.forward_backward(T, obs, actions, C)[1] + 1e-3
+    assert model.T_em.dense() == pytest.approx(T / T.sum(axis=2, keepdims=True), rel=1e-9)
+    dense = model.T.dense()
+    assert dense.sum(axis=2) == pytest.approx(1.0)
+    assert (~model.active).any()
+    assert dense[:, :, ~model.active].max() == 0.0  # the pruned states are never reached
+    unseen = next(
+        (a, c, d) for a in range(A) for c in range(K) for d in range(K)
+        if not ((obs[:-1] == c) & (actions[:-1] == a) & (obs[1:] == d)).any()
+    )  # fmt: skip
+    for a, c, d in [unseen, (actions[0], obs[0], obs[1])]:
+        block = dense[a, c * C : (c + 1) * C, d * C : (d + 1) * C]
+        assert np.array_equal(model.T.block(a, c, d), block)
+    values = np.random.default_rng(0).random(K * C)
+    for a in range(A):
+        assert model.T.after(a, values) == pytest.approx(dense[a] @ values, rel=1e-12)
+    goals = np.flatnonzero(model.active)[:2]
+    best = dense.max(axis=0) * np.outer(model.active, model.active)  # the dense planner's graph
+    np.fill_diagonal(best, 0.0)
+    best[best < 1e-6] = 0.0
+    cost = np.where(best > 0, 1.0 - np.log(np.where(best > 0, best, 1.0)), 0.0)
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import dijkstra
+
+    truth = dijkstra(csr_matrix(cost.T), directed=True, indices=goals, min_only=True)
+    assert goal_distances(model, goals) == pytest.approx(truth, rel=1e-12)
+    assert np.isfinite(truth[model.active]).all()
+    assert np.isinf(truth[~model.active]).all()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -332,7 +396,7 @@ def test_map_refuses_bad_settings_and_other_layouts(rooms1_db_path, tmp_path):
     with pytest.raises(InputError, match="--clones"):
         map_files("raw", rooms1_db_path, tmp_path / "o", clones=0)
     with pytest.raises(InputError, match="states"):
-        map_files("raw", rooms1_db_path, tmp_path / "o", clusters=100, clones=31, contexts=1)
+        map_files("raw", rooms1_db_path, tmp_path / "o", clusters=200, clones=51, contexts=2)
     with pytest.raises(InputError, match="--contexts"):
         map_files("raw", rooms1_db_path, tmp_path / "o", contexts=0)
     other = tmp_path / "other.npz"

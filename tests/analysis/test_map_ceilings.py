@@ -116,7 +116,7 @@ def test_on_a_lattice_database_the_planners_move_as_the_lattice_behaviour(monkey
         model = _one_cell_map()
         kmeans = type("K", (), {"cluster_centers_": np.zeros((1, 5))})()
         planning.run_episode(world, DEFAULT_LAYOUT, lambda: lambda z, m: np.zeros(5), kmeans, model,
-                             np.zeros(model.T.shape[1]), goal, start, np.random.default_rng(0),
+                             np.zeros(model.n_states), goal, start, np.random.default_rng(0),
                              budget=60, use_map=use_map, moves=Moves("lattice"))  # fmt: skip
     assert len(walked) > 60
     _on_the_lattice(walked)
@@ -128,10 +128,10 @@ def test_on_a_lattice_database_the_planners_move_as_the_lattice_behaviour(monkey
 
 def _one_cell_map():
     """A cloned HMM of one cell, two clones, uniform transitions under every action."""
-    from sensorimotor.analysis.map.chmm import CloneHMM
+    from sensorimotor.analysis.map.chmm import CloneHMM, Transitions
 
-    T = np.full((4, 2, 2), 0.5)
-    return CloneHMM(T, 2, np.ones(2, dtype=bool), T, {}, T)
+    T = Transitions.from_dense(np.full((4, 2, 2), 0.5), 2)
+    return CloneHMM(T, np.ones(2, dtype=bool), T.blocks, {}, T)
 
 
 def _second_order(n, k, rng):

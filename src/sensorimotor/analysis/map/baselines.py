@@ -66,8 +66,10 @@ def higher_orders(train, val, test, clusters: int) -> tuple[dict, dict]:
     validation split best; and those betas."""
     bits, betas = {}, {}
     for n in BASELINE_ORDERS:
-        on_val = [ngram_bits(train.cells, train.actions, val.cells, val.actions, clusters, n, beta=b)
-                  for b in BETAS]  # fmt: skip
+        on_val = [
+            ngram_bits(train.cells, train.actions, val.cells, val.actions, clusters, n, beta=b)
+            for b in BETAS
+        ]
         betas[f"markov{n}"] = BETAS[int(np.argmin(on_val))]
         bits[f"markov{n}"] = ngram_bits(
             train.cells, train.actions, test.cells, test.actions, clusters, n,
@@ -119,7 +121,8 @@ def _rnn_eval(net, steps, k: int, limit: int | None = None) -> float:
 def rnn_bits(train, val, test, clusters: int, seed: int = 0, updates: int | None = None) -> float:
     """Bits per step on the test split of a GRU over (cell, action) pairs predicting the next
     cell (module docstring): Adam on random windows of the training split (``updates`` steps:
-    by default RNN_UPDATES, fewer for a short split), one thread, seeded; the weights of the validation check with the fewest bits are scored."""
+    by default RNN_UPDATES, fewer for a short split), one thread, seeded; the weights of the
+    validation check with the fewest bits are scored."""
     import torch
 
     from sensorimotor.analysis.map.cells import N_ACTIONS

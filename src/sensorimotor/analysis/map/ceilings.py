@@ -388,7 +388,9 @@ def _ceilings(db, world: World, seed: int, pairs: int) -> dict:
     with_odo = mcl(*args, odometry=True, seed=seed)
     without = mcl(*args, odometry=False, seed=seed)
     moves = Moves(db.behaviour)
-    plans = true_pose_planning(world, db.layout, seed, pairs, moves=moves) if pairs else {"success": None}
+    plans = {"success": None}
+    if pairs:
+        plans = true_pose_planning(world, db.layout, seed, pairs, moves=moves)
     return {
         "localisation": {
             "balanced_room_accuracy": with_odo["balanced_room_accuracy"],

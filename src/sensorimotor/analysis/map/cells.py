@@ -11,13 +11,16 @@ those cells, and the edges would correspond to motor commands". Here:
   ====== ============== ==================================
   action name           rule
   ====== ============== ==================================
-  0      ``turn``       ``|r| > pi/2`` (the wall-avoidance turn-around)
+  0      ``turn``       ``|r| > 3 pi/4``, r wrapped to [-pi, pi) (the turn-around)
   1      ``right``      ``r < -pi/18`` (clockwise thirds of the moving range)
   2      ``straight``   ``-pi/18 <= r <= pi/18``
   3      ``left``       ``r > pi/18``
   ====== ============== ==================================
 
   The forward distance ``d ~ U(0, 1)`` is not binned: it is recorded on each edge instead.
+  The same bins serve the other behaviours: the lattice's turns of +-pi/6 are ``left`` and
+  ``right``, its turn-arounds (pi -+ pi/6) ``turn``; the grid's quarter turns are ``left`` and
+  ``right`` (its reflex's 3 pi/2 is a right turn, which is what it does), its half turn ``turn``.
 - **The cell graph**: nodes are cells, an edge ``(i, a, j)`` is a transition seen from cell i
   under action a to cell j, with its count and the mean and sd of the motor command over it.
 
@@ -39,7 +42,7 @@ import numpy as np
 
 ACTION_NAMES = ("turn", "right", "straight", "left")
 N_ACTIONS = len(ACTION_NAMES)
-TURN_LIMIT = math.pi / 2  # |r| above this is the turn-around (moving r stays within pi/6)
+TURN_LIMIT = 3 * math.pi / 4  # |r| above this is the turn-around (the grid's turns are pi/2)
 STRAIGHT = math.pi / 18  # |r| at most this is "straight" (the middle third of [-pi/6, pi/6])
 SMOOTHING = 1.0  # beta: pseudo-counts of the unigram added to each (cell, action) row
 
@@ -49,7 +52,7 @@ def action_bins(motors: np.ndarray) -> np.ndarray:
     motors = np.asarray(motors, dtype=np.float64)
     if motors.ndim != 2 or motors.shape[1] != 2:
         raise ValueError(f"motors must have shape (N, 2), got {motors.shape}")
-    r = motors[:, 1]
+    r = (motors[:, 1] + math.pi) % (2 * math.pi) - math.pi
     actions = np.where(r < -STRAIGHT, 1, np.where(r > STRAIGHT, 3, 2))
     return np.where(np.abs(r) > TURN_LIMIT, 0, actions).astype(np.int64)
 
@@ -113,7 +116,7 @@ class CellGraph:
 
 
 def unigram(cells: np.ndarray, k: int, alpha: float = 0.5) -> np.ndarray:
-    """(K,) cell frequencies with ``alpha`` pseudo-counts each (alpha = 0: the plain frequencies)."""
+    """(K,) cell frequencies with ``alpha`` pseudo-counts each (0: the plain frequencies)."""
     n = np.bincount(np.asarray(cells, dtype=np.int64), minlength=k)[:k].astype(np.float64)
     return (n + alpha) / (n.sum() + alpha * k)
 

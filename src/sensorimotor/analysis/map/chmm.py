@@ -44,16 +44,158 @@ import numba
 import numpy as np
 
 from sensorimotor.analysis.map.cells import check_sequence
+from sensorimotor.errors import InputError
 
 EM_ITERS = 100  # at most this many EM iterations
 VITERBI_ITERS = 20  # at most this many Viterbi-training iterations
 SPLIT_VITERBI_ITERS = 5  # at most this many after the context split (each pass costs N^2 more)
 TOL = 1e-4  # nats per step: EM stops when an iteration improves the log-likelihood by less
 PSEUDOCOUNT = 1e-3  # added to every transition count (EM) / every active target (final map)
+MAX_BLOCK_BYTES = 2 * 1024**3  # one (B, C, C) float64 store; a fit holds about four at once
+RANDOM_CHUNK = 2**22  # numbers drawn at a time for the random start
+
+
+@dataclass(frozen=True)
+class Transitions:
+    """``T[a, s, s']`` of a cloned HMM (s = cell * C + clone), stored by blocks (module
+    docstring): ``T[a, c C + i, c' C + j]`` is ``blocks[b, i, j]`` where ``keys[b]`` is
+    (c, a, c'), else ``rest[a, c C + i] * targets[c' C + j]``."""
+
+    keys: np.ndarray  # (B,) int64 sorted: (cell * A + action) * K + next cell
+    blocks: np.ndarray  # (B, C, C) float64
+    rest: np.ndarray  # (A, S) float64 the probability of each target outside the blocks
+    targets: np.ndarray  # (S,) float64 1 for a state that can be a target, 0 for a pruned one
+    n_cells: int  # K
+    n_actions: int  # A
+
+    @property
+    def n_clones(self) -> int:
+        return self.blocks.shape[1]
+
+    @property
+    def n_states(self) -> int:
+        return self.n_cells * self.n_clones
+
+    def ids(self, cells: np.ndarray, actions: np.ndarray) -> np.ndarray:
+        """(n - 1,) int64 the block of each step's transition, -1 where there is none."""
+        key = _triple_keys(cells, actions, self.n_cells, self.n_actions)
+        if not len(self.keys):
+            return np.full(len(key), -1, dtype=np.int64)
+        at = np.minimum(np.searchsorted(self.keys, key), len(self.keys) - 1)
+        return np.where(self.keys[at] == key, at, -1)
+
+    def block(self, action: int, cell: int, next_cell: int) -> np.ndarray:
+        """(C, C) ``T[action, clones of cell, clones of next_cell]``."""
+        b = self.ids(np.array([cell, next_cell]), np.array([action, 0]))[0]
+        if b >= 0:
+            return self.blocks[b]
+        C = self.n_clones
+        rows = self.rest[action, cell * C : (cell + 1) * C]
+        return np.outer(rows, self.targets[next_cell * C : (next_cell + 1) * C])
+
+    def after(self, action: int, values: np.ndarray) -> np.ndarray:
+        """(S,) ``sum_s' T[action, s, s'] values[s']``: ``values`` (S,) expected one step on."""
+        K, C = self.n_cells, self.n_clones
+        cell, a, nxt = _unkey(self.keys, K, self.n_actions)
+        mine = a == action
+        cell, nxt = cell[mine], nxt[mine]
+        reached = (self.targets * values).reshape(K, C)
+        inside = np.zeros((K, C))
+        np.add.at(
+            inside, cell, np.einsum("bij,bj->bi", self.blocks[mine], values.reshape(K, C)[nxt])
+        )
+        outside = np.full(K, reached.sum())  # every target's value but the blocks' own
+        np.subtract.at(outside, cell, reached[nxt].sum(axis=1))
+        return (inside + self.rest[action].reshape(K, C) * outside[:, None]).reshape(-1)
+
+    def entries(self, values: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
+        """(source state, target state, action, value) of every entry of the blocks, or of
+        ``values`` (B, C, C) laid out as they are, each (B C^2,)."""
+        C = self.n_clones
+        values = self.blocks if values is None else values
+        cell, a, nxt = (x.repeat(C * C) for x in _unkey(self.keys, self.n_cells, self.n_actions))
+        i, j = (np.tile(x.ravel(), len(self.keys)) for x in np.indices((C, C)))
+        return cell * C + i, nxt * C + j, a, values.ravel()
+
+    def dense(self) -> np.ndarray:
+        """(A, S, S) the full matrix (small maps and tests only)."""
+        C = self.n_clones
+        T = self.rest[:, :, None] * self.targets[None, None, :]
+        cell, a, nxt = _unkey(self.keys, self.n_cells, self.n_actions)
+        for b in range(len(self.keys)):
+            T[a[b], cell[b] * C : (cell[b] + 1) * C, nxt[b] * C : (nxt[b] + 1) * C] = self.blocks[b]
+        return T
+
+    @classmethod
+    def from_dense(cls, T: np.ndarray, n_clones: int) -> Transitions:
+        """The store of a dense (A, S, S) ``T``, with a block for every triple."""
+        A, S, _ = T.shape
+        K, C = S // n_clones, n_clones
+        keys = np.arange(K * A * K, dtype=np.int64)
+        cell, a, nxt = _unkey(keys, K, A)
+        blocks = T.reshape(A, K, C, K, C)[a, cell, :, nxt, :]  # (B, C, C)
+        return cls(keys, np.ascontiguousarray(blocks), np.zeros((A, S)), np.ones(S), K, A)
+
+
+def _triple_keys(cells: np.ndarray, actions: np.ndarray, k: int, n_actions: int) -> np.ndarray:
+    """(n - 1,) the key (cell * A + action) * K + next cell of each step's transition."""
+    return (cells[:-1] * n_actions + actions[:-1]) * k + cells[1:]
+
+
+def _unkey(keys: np.ndarray, k: int, n_actions: int) -> tuple:
+    """(cell, action, next cell) of each key."""
+    return keys // (n_actions * k), (keys // k) % n_actions, keys % k
+
+
+def _normalise(
+    keys, counts, k: int, n_actions: int, pseudocount: float, targets=None
+) -> Transitions:
+    """The Transitions of ``counts`` (B, C, C) plus ``pseudocount`` on every target (only on
+    ``targets`` (S,) bool, if given), rows summing to 1; a row with no mass at all becomes
+    uniform over the targets."""
+    C = counts.shape[1]
+    S = k * C
+    t = np.ones(S) if targets is None else targets.astype(np.float64)
+    cell, a, nxt = _unkey(keys, k, n_actions)
+    total = np.full((n_actions, k, C), pseudocount * t.sum())  # the rest's share, then the blocks
+    np.add.at(total, (a, cell), counts.sum(axis=2))
+    rows = total[a, cell][:, :, None]  # (B, C, 1)
+    target = t.reshape(k, C)[nxt][:, None, :]  # (B, 1, C)
+    fill = 1.0 / t.sum()
+    blocks = np.where(rows > 0, (counts + pseudocount * target) / np.where(rows > 0, rows, 1.0),
+                      target * fill)  # fmt: skip
+    total = total.reshape(n_actions, S)
+    rest = np.where(total > 0, pseudocount / np.where(total > 0, total, 1.0), fill)
+    return Transitions(keys, blocks, rest, t, k, n_actions)
+
+
+def _random_start(rng: np.random.Generator, keys, k: int, C: int, n_actions: int) -> Transitions:
+    """The blocks of the dense random start ``rng.random((A, S, S))`` with rows normalised: the
+    same stream, drawn a few cells' rows at a time, so a fit starts where the dense one did."""
+    S = k * C
+    blocks = np.empty((len(keys), C, C))
+    rest = np.zeros((n_actions, S))
+    nxt = keys % k
+    first = np.searchsorted(keys, np.arange(k * n_actions + 1) * k)  # blocks of each (cell, a)
+    per = max(1, RANDOM_CHUNK // (S * C))  # cells a draw
+    for action in range(n_actions):
+        for c0 in range(0, k, per):
+            r = rng.random((min(per, k - c0) * C, S))
+            r /= r.sum(axis=1, keepdims=True)
+            for c in range(c0, min(c0 + per, k)):
+                mine = slice(first[c * n_actions + action], first[c * n_actions + action + 1])
+                rows = r[(c - c0) * C : (c - c0 + 1) * C]
+                for b in range(mine.start, mine.stop):
+                    blocks[b] = rows[:, nxt[b] * C : (nxt[b] + 1) * C]
+                outside = S - C * (mine.stop - mine.start)
+                if outside:  # the rest: the mean of what the blocks leave
+                    inside = blocks[mine].sum(axis=(0, 2))
+                    rest[action, c * C : (c + 1) * C] = (1.0 - inside) / outside
+    return Transitions(keys, blocks, rest, np.ones(S), k, n_actions)
 
 
 @numba.njit(cache=True)
-def _forward(T, cells, actions, C, alpha):
+def _forward(blocks, ids, rest, targets, cells, actions, C, alpha):
     """Scaled forward pass: fill ``alpha`` (n, C) with the filtered distribution over the clones
     of ``cells[t]`` and return (n,) the log of each step's scale, ``log p(c_t | past)`` (0 for
     t = 0, whose cell is given). A step given probability 0 (a transition the map forbids) has
@@ -64,17 +206,21 @@ def _forward(T, cells, actions, C, alpha):
         alpha[0, i] = 1.0 / C
     new = np.empty(C)
     for t in range(n - 1):
-        i0 = cells[t] * C
-        j0 = cells[t + 1] * C
-        a = actions[t]
+        b = ids[t]
         for j in range(C):
             new[j] = 0.0
         for i in range(C):
             ai = alpha[t, i]
             if ai == 0.0:
                 continue
-            for j in range(C):
-                new[j] += ai * T[a, i0 + i, j0 + j]
+            if b >= 0:
+                for j in range(C):
+                    new[j] += ai * blocks[b, i, j]
+            else:  # a transition the training sequence never made: the rest of the row
+                r = ai * rest[actions[t], cells[t] * C + i]
+                j0 = cells[t + 1] * C
+                for j in range(C):
+                    new[j] += r * targets[j0 + j]
         total = 0.0
         for j in range(C):
             total += new[j]
@@ -90,23 +236,21 @@ def _forward(T, cells, actions, C, alpha):
 
 
 @numba.njit(cache=True)
-def _backward_counts(T, cells, actions, C, alpha, counts):
-    """Scaled backward pass; add the expected transition counts ``xi_t(i, j)`` (each step's sum
-    to 1) into ``counts`` (A, S, S)."""
-    n = cells.shape[0]
+def _backward_counts(blocks, ids, C, alpha, counts):
+    """Scaled backward pass over a training sequence (every step has its block); add the
+    expected transition counts ``xi_t(i, j)`` (each step's sum to 1) into ``counts`` (B, C, C)."""
+    n = ids.shape[0] + 1
     beta = np.full(C, 1.0 / C)
     new = np.empty(C)
     tb = np.empty((C, C))
     for t in range(n - 2, -1, -1):
-        i0 = cells[t] * C
-        j0 = cells[t + 1] * C
-        a = actions[t]
+        b = ids[t]
         total = 0.0
         norm = 0.0
         for i in range(C):  # tb = T beta, once: both xi = alpha tb and the new beta use it
             s = 0.0
             for j in range(C):
-                v = T[a, i0 + i, j0 + j] * beta[j]
+                v = blocks[b, i, j] * beta[j]
                 tb[i, j] = v
                 s += v
             new[i] = s
@@ -119,28 +263,27 @@ def _backward_counts(T, cells, actions, C, alpha, counts):
                 if w == 0.0:
                     continue
                 for j in range(C):
-                    counts[a, i0 + i, j0 + j] += w * tb[i, j]
+                    counts[b, i, j] += w * tb[i, j]
         for i in range(C):
             beta[i] = new[i] / norm if norm > 0.0 else 1.0 / C
 
 
 @numba.njit(cache=True)
-def _viterbi(logT, cells, actions, C):
-    """Most likely clone path (n,) int64 (states ``cells * C + clone``) and its log-probability."""
+def _viterbi(log_blocks, ids, cells, C):
+    """Most likely clone path (n,) int64 (states ``cells * C + clone``) of a training sequence
+    and its log-probability."""
     n = cells.shape[0]
     back = np.zeros((n, C), dtype=np.int32)
     delta = np.full(C, -math.log(C))
     new = np.empty(C)
     offset = 0.0
     for t in range(n - 1):
-        i0 = cells[t] * C
-        j0 = cells[t + 1] * C
-        a = actions[t]
+        b = ids[t]
         for j in range(C):
             best = -np.inf
             arg = 0
             for i in range(C):
-                v = delta[i] + logT[a, i0 + i, j0 + j]
+                v = delta[i] + log_blocks[b, i, j]
                 if v > best:
                     best = v
                     arg = i
@@ -158,46 +301,52 @@ def _viterbi(logT, cells, actions, C):
     return path, offset
 
 
-def _normalise(counts: np.ndarray, pseudocount: float, targets: np.ndarray | None = None):
-    """Rows of ``counts + pseudocount`` (on ``targets`` only, if given) summing to 1; a row with
-    no mass at all becomes uniform over the targets."""
-    extra = pseudocount if targets is None else pseudocount * targets
-    T = counts + extra
-    total = T.sum(axis=2, keepdims=True)
-    fill = np.ones(T.shape[2]) if targets is None else targets.astype(np.float64)
-    fill = fill / fill.sum()
-    return np.where(total > 0, T / np.where(total > 0, total, 1.0), fill)
-
-
-def _path_counts(path: np.ndarray, actions: np.ndarray, shape: tuple) -> np.ndarray:
-    """(A, S, S) counts of the transitions along a state path."""
-    A, S, _ = shape
-    flat = (actions[:-1] * S + path[:-1]) * S + path[1:]
-    return np.bincount(flat, minlength=A * S * S).astype(np.float64).reshape(shape)
+def _path_counts(path: np.ndarray, ids: np.ndarray, C: int, n_blocks: int) -> np.ndarray:
+    """(B, C, C) counts of the transitions along a state path, block by block."""
+    flat = (ids * C + path[:-1] % C) * C + path[1:] % C
+    return np.bincount(flat, minlength=n_blocks * C * C).astype(np.float64).reshape(-1, C, C)
 
 
 @dataclass(frozen=True)
 class CloneHMM:
     """A fitted cloned HMM: K cells of C clones each, A actions."""
 
-    T: np.ndarray  # (A, S, S) float64 transition probabilities, rows summing to 1
-    n_clones: int  # C
+    T: Transitions  # the transition probabilities, rows summing to 1
     active: np.ndarray  # (S,) bool: states the Viterbi path visits (the rest are pruned)
-    counts: np.ndarray  # (A, S, S) the Viterbi path's transition counts on the training data
+    counts: np.ndarray  # (B, C, C) the Viterbi path's transition counts, on T's blocks
     history: dict  # log-likelihood per step (nats) after each EM / Viterbi iteration
-    T_em: np.ndarray  # (A, K C', K C') after EM, before Viterbi (C' = C / contexts: unsplit)
+    T_em: Transitions  # after EM, before Viterbi (C / contexts clones: unsplit)
+
+    @property
+    def n_clones(self) -> int:
+        return self.T.n_clones
 
     @property
     def n_cells(self) -> int:
-        return self.T.shape[1] // self.n_clones
+        return self.T.n_cells
 
     @property
     def n_states(self) -> int:
-        return self.T.shape[1]
+        return self.T.n_states
 
     def state_cell(self) -> np.ndarray:
         """(S,) the cell each state emits."""
         return np.arange(self.n_states) // self.n_clones
+
+    def transitions(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(source state, target state, action, count) of every transition the Viterbi path
+        takes, each (E,) int64."""
+        source, target, action, count = self.T.entries(self.counts)
+        taken = count > 0
+        return source[taken], target[taken], action[taken], count[taken].astype(np.int64)
+
+    def edge_counts(self):
+        """(S, S) scipy sparse: the path's transitions from state to state, actions summed."""
+        from scipy.sparse import coo_matrix
+
+        source, target, _, count = self.transitions()
+        S = self.n_states
+        return coo_matrix((count.astype(np.float64), (source, target)), shape=(S, S)).tocsr()
 
 
 def _sequence(cells, actions, k: int, n_actions: int):
@@ -205,31 +354,33 @@ def _sequence(cells, actions, k: int, n_actions: int):
     return np.ascontiguousarray(cells), np.ascontiguousarray(actions)
 
 
-def log_likelihood(T: np.ndarray, cells, actions, n_clones: int) -> np.ndarray:
+def log_likelihood(T: Transitions, cells, actions) -> np.ndarray:
     """(n,) ``log p(c_t | c_{<t}, a_{<t})`` in nats (0 for the first, given, step)."""
-    cells, actions = _sequence(cells, actions, T.shape[1] // n_clones, T.shape[0])
-    alpha = np.empty((len(cells), n_clones))
-    return _forward(np.ascontiguousarray(T), cells, actions, n_clones, alpha)
+    cells, actions = _sequence(cells, actions, T.n_cells, T.n_actions)
+    alpha = np.empty((len(cells), T.n_clones))
+    return _forward(T.blocks, T.ids(cells, actions), T.rest, T.targets, cells, actions,
+                    T.n_clones, alpha)  # fmt: skip
 
 
 def filtered(model: CloneHMM, cells, actions) -> np.ndarray:
     """(n, C) the filtered distribution over the clones of each step's cell (causal)."""
-    cells, actions = _sequence(cells, actions, model.n_cells, model.T.shape[0])
-    alpha = np.empty((len(cells), model.n_clones))
-    _forward(np.ascontiguousarray(model.T), cells, actions, model.n_clones, alpha)
+    T = model.T
+    cells, actions = _sequence(cells, actions, T.n_cells, T.n_actions)
+    alpha = np.empty((len(cells), T.n_clones))
+    _forward(T.blocks, T.ids(cells, actions), T.rest, T.targets, cells, actions, T.n_clones, alpha)
     return alpha
 
 
-def _viterbi_training(T, cells, actions, C, iters, history, stage, progress, path=None):
+def _viterbi_training(T, ids, cells, iters, history, stage, progress, path=None):
     """Viterbi training from ``T``: the most likely path, ``T`` from its counts, until the path's
     log-probability stops improving or ``iters``; returns the last ``T`` and its path (``path``
     if not even the first pass improves on -inf: iters = 0)."""
-    n = len(cells)
+    n, C = len(cells), T.n_clones
     previous = -np.inf
     history[stage] = []
     for it in range(iters):
         with np.errstate(divide="ignore"):
-            new_path, logp = _viterbi(np.log(T), cells, actions, C)
+            new_path, logp = _viterbi(np.log(T.blocks), ids, cells, C)
         ll = logp / (n - 1)
         if ll <= previous + 1e-12:
             break
@@ -237,8 +388,22 @@ def _viterbi_training(T, cells, actions, C, iters, history, stage, progress, pat
         history[stage].append(float(ll))
         if progress is not None:
             progress(stage, it, ll)
-        T = _normalise(_path_counts(path, actions, T.shape), 0.0)
+        counts = _path_counts(path, ids, C, len(T.keys))
+        T = _normalise(T.keys, counts, T.n_cells, T.n_actions, 0.0)
     return T, path
+
+
+def check_size(cells, actions, n_cells: int, n_clones: int, n_actions: int) -> None:
+    """InputError if the blocks of this sequence's triples at ``n_clones`` clones (all clones,
+    contexts included) would pass MAX_BLOCK_BYTES."""
+    cells, actions = _sequence(cells, actions, n_cells, n_actions)
+    n_blocks = len(np.unique(_triple_keys(cells, actions, n_cells, n_actions)))
+    size = n_blocks * n_clones**2 * 8
+    if size > MAX_BLOCK_BYTES:
+        raise InputError(
+            f"the map's transitions would take {size / 1024**3:.1f} GB ({n_blocks:,} blocks of "
+            f"{n_clones} x {n_clones}); at most {MAX_BLOCK_BYTES / 1024**3:.0f} GB: fewer clones"
+        )
 
 
 def fit_chmm(
@@ -267,40 +432,42 @@ def fit_chmm(
         context = np.ascontiguousarray(context, dtype=np.int64)
         if context.shape != cells.shape or context.min() < 0 or context.max() >= n_contexts:
             raise ValueError(f"context must be {cells.shape} labels in [0, {n_contexts})")
+    check_size(cells, actions, n_cells, n_clones * n_contexts, n_actions)
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
-    S, C, n = n_cells * n_clones, n_clones, len(cells)
-    T = _normalise(rng.random((n_actions, S, S)), 0.0)
+    K, A, C, n = n_cells, n_actions, n_clones, len(cells)
+    keys, ids = np.unique(_triple_keys(cells, actions, K, A), return_inverse=True)
+    ids = ids.astype(np.int64)
+    T = _random_start(rng, keys, K, C, A)
     alpha = np.empty((n, C))
     history: dict[str, list[float]] = {"em": [], "viterbi": []}
     previous = -np.inf
     for it in range(em_iters):
-        ll = _forward(T, cells, actions, C, alpha)[1:].sum() / (n - 1)
+        ll = _forward(T.blocks, ids, T.rest, T.targets, cells, actions, C, alpha)[1:].sum() / (
+            n - 1
+        )
         history["em"].append(float(ll))
         if progress is not None:
             progress("em", it, ll)
         if ll - previous < tol:
             break
         previous = ll
-        counts = np.zeros_like(T)
-        _backward_counts(T, cells, actions, C, alpha, counts)
-        T = _normalise(counts, pseudocount)
+        counts = np.zeros_like(T.blocks)
+        _backward_counts(T.blocks, ids, C, alpha, counts)
+        T = _normalise(keys, counts, K, A, pseudocount)
     del alpha
     T_em = T
-    T, path = _viterbi_training(T, cells, actions, C, viterbi_iters, history, "viterbi", progress)
+    T, path = _viterbi_training(T, ids, cells, viterbi_iters, history, "viterbi", progress)
     if n_contexts > 1:  # each clone becomes n_contexts clones, one per context, then Viterbi
-        split = C * n_contexts
-        path = cells * split + (path % C) * n_contexts + context
-        shape = (n_actions, n_cells * split, n_cells * split)
-        T = _normalise(_path_counts(path, actions, shape), pseudocount)
-        S, C = n_cells * split, split
-        T, path = _viterbi_training(
-            T, cells, actions, C, SPLIT_VITERBI_ITERS, history, "split", progress, path
-        )
-    counts = _path_counts(path, actions, T.shape)
-    active = np.zeros(S, dtype=bool)
+        C = C * n_contexts
+        path = cells * C + (path % n_clones) * n_contexts + context
+        T = _normalise(keys, _path_counts(path, ids, C, len(keys)), K, A, pseudocount)
+        T, path = _viterbi_training(T, ids, cells, SPLIT_VITERBI_ITERS, history, "split", progress,
+                                    path)  # fmt: skip
+    counts = _path_counts(path, ids, C, len(keys))
+    active = np.zeros(K * C, dtype=bool)
     active[path] = True
-    for cell in range(n_cells):  # a cell never seen in training keeps one clone to be seen by
+    for cell in range(K):  # a cell never seen in training keeps one clone to be seen by
         if not active[cell * C : (cell + 1) * C].any():
             active[cell * C] = True
-    T = _normalise(counts, pseudocount, active)
-    return CloneHMM(T, C, active, counts, history, T_em)
+    T = _normalise(keys, counts, K, A, pseudocount, active)
+    return CloneHMM(T, active, counts, history, T_em)

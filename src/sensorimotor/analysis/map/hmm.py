@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 HMM_STEPS = 100_000  # training steps EM sees (S^2 a step: the map's 800 states cost 5 s a pass)
+HMM_MAX_STATES = 3_000  # a map with more states gets a plain HMM of this many (70 s a pass)
 HMM_CHUNK = 200  # steps per chunk
 HMM_GROUP = 100  # chunks filtered together
 HMM_ITERS = 20  # EM iterations at most ...
@@ -141,12 +142,15 @@ def _bits(m: PlainHMM, cells, actions) -> float:
 
 def plain_hmm_bits(train, val, test, clusters: int, states: int, seed: int = 0,
                    n_actions: int = 4, progress=None) -> dict:  # fmt: skip
-    """Bits per step on the test split of a plain HMM of ``states`` states (module docstring),
-    with the EM iteration chosen on the validation split, and what it was fitted on."""
+    """Bits per step on the test split of a plain HMM of ``states`` states (module docstring; at
+    most HMM_MAX_STATES), with the EM iteration chosen on the validation split, and what it was
+    fitted on."""
+    map_states, states = states, min(states, HMM_MAX_STATES)
     L = HMM_CHUNK
     n = min(len(train.cells), HMM_STEPS) // L * L
     if n < L or len(val.cells) < 2 or len(test.cells) < 2:
-        return {"bits": None, "states": states, "train_steps": n, "iterations": 0}
+        return {"bits": None, "states": states, "map_states": map_states, "train_steps": n,
+                "iterations": 0}  # fmt: skip
     cells = np.asarray(train.cells[:n], dtype=np.int64).reshape(-1, L)
     actions = np.asarray(train.actions[:n], dtype=np.int64).reshape(-1, L)
     v = min(len(val.cells), HMM_VAL_STEPS)
@@ -166,6 +170,7 @@ def plain_hmm_bits(train, val, test, clusters: int, states: int, seed: int = 0,
     return {
         "bits": _bits(best_model, test.cells, test.actions),
         "states": states,
+        "map_states": map_states,
         "train_steps": n,
         "iterations": i + 1,
         "val_bits": best,

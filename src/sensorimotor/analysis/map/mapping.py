@@ -76,7 +76,7 @@ from sensorimotor.version import __version__
 N_CLONES = 20  # clones per cell (the issue's 20-cell, 20-clone map)
 MAX_CLUSTERS = 200
 MAX_CLONES = 100
-MAX_STATES = 3_000  # K C N: T is (A, S, S) float64, several copies held while fitting
+MAX_STATES = 20_000  # K C N: the random start draws A S^2 numbers (2e9, about 10 s, here)
 GRID = 10  # the position ground truth: a GRID x GRID partition of the world
 PRIOR = 1e-3  # weight of a state's cell's labels added to the state's own (unvisited states)
 OUTPUTS = (
@@ -133,8 +133,8 @@ def _check_length(db: Database, split: str, k: int) -> None:
 
 
 def cell_steps(run, db: Database, k: int, seed: int, fit_db: Database | None = None):
-    """(train Steps, test Steps, the k-means) of ``db``: k-means (k = ``k``) fitted on the training split of
-    ``fit_db`` (or of ``db``), applied to both splits of ``db``."""
+    """(train Steps, test Steps, the k-means) of ``db``: k-means (k = ``k``) fitted on the
+    training split of ``fit_db`` (or of ``db``), applied to both splits of ``db``."""
     for d, split in ((db, "train"), (db, "test"), (fit_db, "train")):
         if d is not None:
             _check_length(d, split, k)
@@ -283,17 +283,22 @@ def _networkx():
 
 def communities(weights: np.ndarray, nodes: np.ndarray, seed: int) -> np.ndarray:
     """(N,) Louvain community of each node (-1 for those not in ``nodes``) of the undirected
-    graph whose edge i-j weighs ``weights[i, j] + weights[j, i]``; numbered by smallest node."""
+    graph whose edge i-j weighs ``weights[i, j] + weights[j, i]`` (``weights`` (N, N), dense or
+    scipy sparse); numbered by smallest node."""
+    from scipy.sparse import coo_matrix, triu
+
     nx = _networkx()
-    w = weights + weights.T
+    w = coo_matrix(weights)
+    w = triu(w + w.T).tocoo()  # duplicates summed
     graph = nx.Graph()
     graph.add_nodes_from(int(i) for i in nodes)
-    keep = np.zeros(len(w), dtype=bool)
+    keep = np.zeros(w.shape[0], dtype=bool)
     keep[nodes] = True
-    for i, j in zip(*np.nonzero(np.triu(w) * keep[:, None] * keep[None, :]), strict=True):
-        graph.add_edge(int(i), int(j), weight=float(w[i, j]))
+    for i, j, v in zip(w.row, w.col, w.data, strict=True):
+        if v and keep[i] and keep[j]:
+            graph.add_edge(int(i), int(j), weight=float(v))
     found = nx.community.louvain_communities(graph, weight="weight", seed=seed)
-    label = np.full(len(w), -1, dtype=np.int64)
+    label = np.full(w.shape[0], -1, dtype=np.int64)
     for c, members in enumerate(sorted(found, key=min)):
         label[list(members)] = c
     return label
@@ -306,7 +311,7 @@ def rooms_from_graph(
     test step's community against its room (null without named rooms)."""
     from sklearn.metrics import adjusted_rand_score
 
-    state_comm = communities(model.counts.sum(axis=0), np.flatnonzero(model.active), seed)
+    state_comm = communities(model.edge_counts(), np.flatnonzero(model.active), seed)
     cell_comm = communities(graph.counts.sum(axis=0), np.arange(graph.k), seed)
     w = filtered(model, test.cells, test.actions)
     best = test.cells * model.n_clones + w.argmax(axis=1)
@@ -367,8 +372,9 @@ def _versions() -> dict:
 
 def map_graphs(model: CloneHMM, graph: CellGraph, state_mean, occupancy, comm, world: World):
     """(the map, the cell graph) as networkx directed graphs: the map's active states with their
-    cell, clone (after the split: clone x contexts + context), mean position, room and community, edges with their Viterbi counts per action;
-    the cell graph as a multigraph, one edge per (cell, action, next cell) with its motor stats."""
+    cell, clone (after the split: clone x contexts + context), mean position, room and
+    community, edges with their Viterbi counts per action; the cell graph as a multigraph, one
+    edge per (cell, action, next cell) with its motor stats."""
     nx = _networkx()
     m = nx.DiGraph(name="map")
     rooms = world.room_index(state_mean[:, 0], state_mean[:, 1]) if world.rooms else None
@@ -383,10 +389,12 @@ def map_graphs(model: CloneHMM, graph: CellGraph, state_mean, occupancy, comm, w
             community=int(comm[s]),
             room=world.rooms[rooms[s]].name if rooms is not None and rooms[s] >= 0 else "",
         )
-    total = model.counts.sum(axis=0)
-    for i, j in zip(*np.nonzero(total), strict=True):
-        per_action = {f"count_{n}": int(model.counts[a, i, j]) for a, n in enumerate(ACTION_NAMES)}
-        m.add_edge(int(i), int(j), weight=float(total[i, j]), **per_action)
+    edges: dict[tuple[int, int], dict] = {}
+    for i, j, a, count in zip(*model.transitions(), strict=True):
+        edge = edges.setdefault((int(i), int(j)), {f"count_{n}": 0 for n in ACTION_NAMES})
+        edge[f"count_{ACTION_NAMES[a]}"] = int(count)
+    for (i, j), per_action in sorted(edges.items()):
+        m.add_edge(i, j, weight=float(sum(per_action.values())), **per_action)
     g = nx.MultiDiGraph(name="cell graph")
     g.add_nodes_from(range(graph.k))
     for e in graph.edges():
@@ -436,9 +444,7 @@ def map_files(
     val = split_steps(db, kmeans, representation_of(run, db, "val"), "val")
     bits = baseline_bits(train.cells, train.actions, test.cells, test.actions, clusters)
     for name, T in (("map", model.T), ("map_em", model.T_em)):
-        per_cell = T.shape[1] // clusters  # the clones before the split, for T_em
-        bits[name] = float(-log_likelihood(T, test.cells, test.actions, per_cell)[1:].mean())
-        bits[name] /= math.log(2)
+        bits[name] = float(-log_likelihood(T, test.cells, test.actions)[1:].mean()) / math.log(2)
     loc, state_mean, occupancy = localisation(model, train, test, world)
     rooms, comm = rooms_from_graph(model, graph, test, world, seed)
     plans, traces = {"success": {"map": None, "random": None}, "pairs": 0}, []
@@ -499,7 +505,7 @@ def map_files(
     drawn = plot_map_graph(
         world,
         state_mean,
-        model.counts.sum(axis=0),
+        model.edge_counts(),
         model.active,
         comm,
         occupancy,

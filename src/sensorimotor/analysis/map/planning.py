@@ -109,21 +109,36 @@ PAPER_MOVES = Moves()
 def goal_distances(model: CloneHMM, goals: np.ndarray) -> np.ndarray:
     """(S,) cost of the best path from each state to the nearest of the ``goals`` states (inf
     where none): Dijkstra on edge costs ``1 - log max_a T[a, s, s']`` (a step, plus its
-    surprise), between active states only; see the comment on the jumps below."""
+    surprise), between active states only, with ``T`` above 1e-6; see the comment on the jumps
+    below."""
     from scipy.sparse import csr_matrix
     from scipy.sparse.csgraph import dijkstra
 
-    best = model.T.max(axis=0) * np.outer(model.active, model.active)  # (S, S)
-    np.fill_diagonal(best, 0.0)
-    best[best < 1e-6] = 0.0
-    # The final map's pseudocount (about 1e-3 / the row's count) stays above this threshold, so
-    # every pair of active states is also joined by a costly jump (cost about 10 to 12): it caps
-    # every distance, and the plan steers by the map's transitions near the goal states only.
+    T, S = model.T, model.n_states
+    source, target, _, p = T.entries()
+    keep = model.active[source] & model.active[target] & (source != target) & (p >= 1e-6)
+    source, target, p = source[keep], target[keep], p[keep]
+    first = np.lexsort((-p, target, source))  # the likeliest action first for each pair
+    pair = source[first] * S + target[first]
+    first = first[np.r_[True, pair[1:] != pair[:-1]]]
+    source, target, cost = source[first], target[first], 1.0 - np.log(p[first])
+    # Every active state also jumps to every other by the pseudocount's share of its row (the
+    # rest, about 1e-3 / the row's count, above the 1e-6 threshold): a costly jump (about 10 to
+    # 12) that caps every distance, so the plan steers by the map's transitions near the goal
+    # states only. It runs through one hub node S: s -> S costs -log max_a rest[a, s], S -> s'
+    # costs 1, so the jump costs 1 - log max_a rest, as a direct edge would (a transition's own
+    # edge is never dearer: a block's entries are at least the rest of their row).
     # Without the jumps (edges = the training path's transitions only), the product map of
     # Rooms1 and Rooms2 (Rec-SM seed 0) planned worse: 0.28 and 0.28 against 0.42 and 0.34.
-    cost = np.where(best > 0, 1.0 - np.log(np.where(best > 0, best, 1.0)), 0.0)
-    reverse = csr_matrix(cost.T)  # paths to the goals
-    return dijkstra(reverse, directed=True, indices=np.asarray(goals), min_only=True)
+    jump = T.rest.max(axis=0)
+    out = np.flatnonzero(model.active & (jump >= 1e-6))
+    into = np.flatnonzero(model.active)
+    source = np.concatenate([source, out, np.full(len(into), S)])
+    target = np.concatenate([target, np.full(len(out), S), into])
+    cost = np.concatenate([cost, -np.log(jump[out]), np.ones(len(into))])
+    reverse = csr_matrix((cost, (target, source)), shape=(S + 1, S + 1))  # paths to the goals
+    found = dijkstra(reverse, directed=True, indices=np.asarray(goals), min_only=True)
+    return found[:S]
 
 
 def goal_states(
@@ -194,7 +209,7 @@ def run_episode(
     C = model.n_clones
     far = np.where(np.isfinite(distances), distances, np.nan)
     far = np.where(np.isnan(far), np.nanmax(far) + 10.0 if np.isfinite(far).any() else 0.0, far)
-    after = np.stack([model.T[a] @ far for a in MOVING]) if use_map else None  # (3, S) after a step
+    after = np.stack([model.T.after(a, far) for a in MOVING]) if use_map else None  # (3, S)
     x, y, heading = start[0], start[1], moves.heading(start[2])
     encode = encoder() if use_map else None
     centres = kmeans.cluster_centers_  # (K, D): the nearest is the cell (KMeans.predict)
@@ -215,8 +230,7 @@ def run_episode(
         if alpha is None:
             alpha = np.full(C, 1.0 / C)
         else:
-            block = model.T[action, cell * C : (cell + 1) * C, new_cell * C : (new_cell + 1) * C]
-            alpha = alpha @ block
+            alpha = alpha @ model.T.block(action, cell, new_cell)
             alpha = alpha / alpha.sum() if alpha.sum() > 0 else np.full(C, 1.0 / C)
         cell = new_cell
         if readings.min() < TURN_THRESHOLD:

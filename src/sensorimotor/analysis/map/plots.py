@@ -6,6 +6,7 @@ import matplotlib as mpl
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from scipy.sparse import coo_matrix, triu
 
 from sensorimotor.sim.plots import PANEL_SIZE, plot_world, world_aspect
 from sensorimotor.sim.world import World
@@ -78,18 +79,18 @@ def plot_map_graph(
 ) -> Axes:
     """The map's states at their mean positions (S, 2) over the walls, coloured by community,
     sized by occupancy; an edge for each pair of states with transitions (``weights`` (S, S),
-    both directions summed), darker the more often it is taken. ``bounding_box``: as for
-    ``plot_place_fields``."""
+    dense or scipy sparse, both directions summed), darker the more often it is taken.
+    ``bounding_box``: as for ``plot_place_fields``."""
     if ax is None:
         ax = Figure(figsize=(6.5, 6.5 * world_aspect([world])), layout="constrained").add_subplot()
     plot_world(world, ax)
     if bounding_box:
         _box(world, ax)
-    w = weights + weights.T
-    np.fill_diagonal(w, 0)
-    i, j = np.nonzero(np.triu(w))
+    w = coo_matrix(weights)
+    w = triu(w + w.T, k=1).tocoo()  # both directions summed, no self-loops
+    i, j, v = w.row[w.data > 0], w.col[w.data > 0], w.data[w.data > 0]
     if len(i):
-        strength = np.log1p(w[i, j]) / np.log1p(w[i, j].max())
+        strength = np.log1p(v) / np.log1p(v.max())
         segments = np.stack([positions[i], positions[j]], axis=1)  # (E, 2, 2)
         lines = mpl.collections.LineCollection(
             segments, colors=[(0.2, 0.2, 0.2, 0.05 + 0.6 * a) for a in strength], lw=0.6, zorder=1
