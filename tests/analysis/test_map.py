@@ -3,6 +3,7 @@ the cloned HMM, what it predicts and where it thinks the agent is."""
 
 from __future__ import annotations
 
+import inspect
 import json
 from dataclasses import replace
 from pathlib import Path
@@ -355,9 +356,16 @@ def test_cli_map_writes_strict_json_graphml_and_figures(cli, rooms1_db_path, tmp
     for rate in m["planning"]["success"].values():
         assert rate in (0.0, 0.5, 1.0)
     assert m["settings"]["contexts"] == N_CONTEXTS == 2  # the default, chosen on validation
-    from sensorimotor.cli.app import N_CONTEXTS as CLI_DEFAULT
+    from sensorimotor.analysis.map import chmm, mapping
+    from sensorimotor.cli.analysis import map_cmd
+    from sensorimotor.cli.app import MAX_CLONES, MAX_CLUSTERS, MAX_CONTEXTS
+    from sensorimotor.cli.app import N_CONTEXTS as CLI_CONTEXTS
 
-    assert CLI_DEFAULT == N_CONTEXTS
+    assert CLI_CONTEXTS == N_CONTEXTS  # the CLI's copies, kept to refuse before imports
+    assert (MAX_CLUSTERS, MAX_CLONES, MAX_CONTEXTS) == (mapping.MAX_CLUSTERS, mapping.MAX_CLONES, mapping.MAX_CONTEXTS)
+    defaults = inspect.signature(map_cmd).parameters
+    assert (defaults["em_iters"].default, defaults["tol"].default) == (chmm.EM_ITERS, chmm.TOL)
+    assert (m["settings"]["em_iters"], m["settings"]["em_tol"]) == (chmm.EM_ITERS, chmm.TOL)
     assert 1 <= m["states"]["active"] <= 6 * 3 * N_CONTEXTS
     import networkx as nx
 

@@ -13,6 +13,7 @@ from sensorimotor.cli.app import (
     MAX_CLONES,
     MAX_CLUSTERS,
     MAX_CONTEXTS,
+    MAX_EM_ITERS,
     MAX_PAIRS,
     N_CONTEXTS,
     RUN,
@@ -104,9 +105,17 @@ def map_cmd(
         int,
         typer.Option(min=0, max=MAX_PAIRS, help="Start/goal pairs planned in the simulator."),
     ] = 300,
+    em_iters: Annotated[
+        int, typer.Option(min=1, max=MAX_EM_ITERS, help="EM iterations at most (n C^2 each).")
+    ] = 100,
+    tol: Annotated[
+        float,
+        typer.Option(min=0.0, max=1.0, help="EM stops when an iteration gains less (nats/step)."),
+    ] = 1e-4,
 ) -> None:
     """Learn a map from a representation's cells: the cell graph and a cloned HMM (EM, Viterbi,
-    each clone split by the slow context), scored on the test split (bits/step, localisation, rooms); see analysis/map/mapping.py."""
+    each clone split by the slow context), scored on the test split (bits/step, localisation,
+    rooms); see analysis/map/mapping.py."""
     from sensorimotor.analysis.map.mapping import check_settings, map_files, summary_lines
 
     check_settings(clusters, clones, contexts)
@@ -120,9 +129,11 @@ def map_cmd(
 
         result = map_files(
             *(run, data, out, clusters, clones, fit_data, seed),
+            em_iters=em_iters,
             pairs=pairs,
             progress=note,
             contexts=contexts,
+            tol=tol,
         )
     print("\n".join(summary_lines(result.metrics)))
     err_console.print("wrote " + ", ".join(str(p) for p in result.files), soft_wrap=True)

@@ -187,6 +187,7 @@ MAX_AGENT_STEPS = 100_000_000  # environment steps of one agent (PPO: days at 1,
 MAX_EPISODES = 10_000  # episodes of one evaluation
 MAX_PAIRS = 3_000  # start/goal pairs a map plans (analysis.map.planning.MAX_PAIRS)
 MAX_CLUSTERS, MAX_CLONES, MAX_CONTEXTS = 200, 100, 16  # a map's (analysis.map.mapping)
+MAX_EM_ITERS = 1_000  # a map's EM iterations: each is a pass over the training split, n C^2
 N_CONTEXTS = 2  # the default --contexts: analysis.map.context.N_CONTEXTS (tests check it)
 MAX_ROOMS = 40  # a floor plan's rooms (sim.floorplan.MAX_ROOMS: about 5 s)
 MAX_SIZE = 200.0  # a floor plan's side (sim.floorplan.MAX_SIZE)

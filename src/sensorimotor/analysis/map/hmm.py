@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 HMM_STEPS = 100_000  # training steps EM sees (S^2 a step: the map's 800 states cost 5 s a pass)
-HMM_MAX_STATES = 3_000  # a map with more states gets a plain HMM of this many (70 s a pass)
+HMM_MAX_STATES = 1_000  # a map with more states gets a plain HMM of this many (8 s a pass)
 HMM_CHUNK = 200  # steps per chunk
 HMM_GROUP = 100  # chunks filtered together
 HMM_ITERS = 20  # EM iterations at most ...

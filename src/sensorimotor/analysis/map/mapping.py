@@ -52,6 +52,7 @@ from sensorimotor.analysis.map.cells import (
 from sensorimotor.analysis.map.chmm import (
     EM_ITERS,
     PSEUDOCOUNT,
+    TOL,
     CloneHMM,
     filtered,
     fit_chmm,
@@ -414,6 +415,7 @@ def map_files(
     pairs: int = N_PAIRS,
     progress=None,
     contexts: int = N_CONTEXTS,
+    tol: float = TOL,
 ) -> MapResult:
     """Build the map of ``run``'s representation (``"raw"`` or a run folder) of ``data`` and
     write ``map.json``, the GraphML files and the figures into ``out`` (module docstring).
@@ -437,6 +439,7 @@ def map_files(
     context = slow_context(train.cells, clusters, contexts, CONTEXT_TAU, seed)
     model = fit_chmm(
         *(train.cells, train.actions, clusters, clones, N_ACTIONS, seed, em_iters),
+        tol=tol,
         context=context,
         n_contexts=contexts,
         progress=progress,
@@ -471,6 +474,7 @@ def map_files(
             "actions": list(ACTION_NAMES),
             "seed": seed,
             "em_iters": em_iters,
+            "em_tol": tol,
             "pseudocount": PSEUDOCOUNT,
             "markov_smoothing": SMOOTHING,
             "grid": GRID,
