@@ -89,3 +89,15 @@ def test_a_plain_hmm_learns_a_persistent_hidden_state_a_markov_chain_cannot():
     assert got["bits"] < markov - 0.1  # measured: 1.63 against 1.81
     assert got["bits"] < best / math.log(2) + 0.02  # the process's own rate: 1.63
     assert got == hmm.plain_hmm_bits(*splits, K, states=S, seed=0, n_actions=1)  # seeded
+
+
+def test_a_map_with_more_states_than_the_cap_gets_a_plain_hmm_of_the_cap(monkeypatch):
+    """The plain HMM is dense (S^2 a step): a blocked map of many states is compared with one
+    of ``HMM_MAX_STATES``, and map.json says both."""
+    monkeypatch.setattr(hmm, "HMM_MAX_STATES", 4)
+    rng = np.random.default_rng(0)
+    splits = [Steps(rng.integers(0, 3, n), np.zeros(n, dtype=np.int64), np.zeros((n, 2)),
+                    np.zeros((n, 3))) for n in (800, 200, 200)]  # fmt: skip
+    got = hmm.plain_hmm_bits(*splits, 3, states=50, seed=0, n_actions=1)
+    assert (got["states"], got["map_states"]) == (4, 50)
+    assert got == hmm.plain_hmm_bits(*splits, 3, states=4, seed=0, n_actions=1) | {"map_states": 50}
