@@ -106,13 +106,21 @@ class Moves:
 PAPER_MOVES = Moves()
 
 
-def goal_distances(model: CloneHMM, goals: np.ndarray) -> np.ndarray:
+def goal_distances(model: CloneHMM, goals: np.ndarray, graph=None) -> np.ndarray:
     """(S,) cost of the best path from each state to the nearest of the ``goals`` states (inf
-    where none): Dijkstra on edge costs ``1 - log max_a T[a, s, s']`` (a step, plus its
-    surprise), between active states only, with ``T`` above 1e-6; see the comment on the jumps
-    below."""
-    from scipy.sparse import csr_matrix
+    where none): Dijkstra on the map's ``reverse_graph`` (pass it to reuse it across goals)."""
     from scipy.sparse.csgraph import dijkstra
+
+    graph = reverse_graph(model) if graph is None else graph
+    found = dijkstra(graph, directed=True, indices=np.asarray(goals), min_only=True)
+    return found[:-1]  # the hub is not a state
+
+
+def reverse_graph(model: CloneHMM):
+    """(S + 1, S + 1) scipy sparse: edge costs ``1 - log max_a T[a, s, s']`` (a step, plus its
+    surprise) between active states, with ``T`` above 1e-6, reversed (paths to the goals), and
+    a hub node S; see the comment on the jumps below. The same for every goal."""
+    from scipy.sparse import csr_matrix
 
     T, S = model.T, model.n_states
     source, target, _, p = T.entries()
@@ -136,9 +144,7 @@ def goal_distances(model: CloneHMM, goals: np.ndarray) -> np.ndarray:
     source = np.concatenate([source, out, np.full(len(into), S)])
     target = np.concatenate([target, np.full(len(out), S), into])
     cost = np.concatenate([cost, -np.log(jump[out]), np.ones(len(into))])
-    reverse = csr_matrix((cost, (target, source)), shape=(S + 1, S + 1))  # paths to the goals
-    found = dijkstra(reverse, directed=True, indices=np.asarray(goals), min_only=True)
-    return found[:S]
+    return csr_matrix((cost, (target, source)), shape=(S + 1, S + 1))
 
 
 def goal_states(
@@ -280,9 +286,11 @@ def planning(
     ``progress(pairs done, success so far)`` after each pair."""
     reached = {"map": [], "random": []}
     traces = []
+    graph = reverse_graph(model)
     for pair, (goal_xy, start, seeds) in enumerate(start_goal_pairs(world, seed, n_pairs)):
         trace: list = []
-        distances = goal_distances(model, goal_states(model, state_mean, occupancy, goal_xy))
+        goals = goal_states(model, state_mean, occupancy, goal_xy)
+        distances = goal_distances(model, goals, graph)
         for name, seed_ in zip(("map", "random"), seeds, strict=True):
             steps = run_episode(
                 world,
