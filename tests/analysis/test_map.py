@@ -17,6 +17,7 @@ from sensorimotor.analysis.analyze import representation_of
 from sensorimotor.analysis.clusters import assign_clusters, fit_kmeans
 from sensorimotor.analysis.map.cells import (
     ACTION_NAMES,
+    Steps,
     action_bins,
     baseline_bits,
     bits,
@@ -33,13 +34,9 @@ from sensorimotor.analysis.map.chmm import (
     log_likelihood,
 )
 from sensorimotor.analysis.map.context import N_CONTEXTS, decayed_history, slow_context
-from sensorimotor.analysis.map.mapping import (
-    Steps,
-    cell_steps,
-    communities,
-    localisation,
-    map_files,
-)
+from sensorimotor.analysis.map.graphs import communities
+from sensorimotor.analysis.map.localisation import localisation
+from sensorimotor.analysis.map.mapping import cell_steps, map_files
 from sensorimotor.analysis.map.planning import goal_distances
 from sensorimotor.errors import InputError
 from sensorimotor.sim.core import SensorLayout

@@ -12,8 +12,13 @@ import pytest
 
 from sensorimotor.analysis.map import ceilings, planning
 from sensorimotor.analysis.map.baselines import rnn_bits
-from sensorimotor.analysis.map.cells import _histories, baseline_bits, ngram_bits, ngram_probs
-from sensorimotor.analysis.map.mapping import Steps
+from sensorimotor.analysis.map.cells import (
+    Steps,
+    _histories,
+    baseline_bits,
+    ngram_bits,
+    ngram_probs,
+)
 from sensorimotor.analysis.map.planning import Moves, start_goal_pairs
 from sensorimotor.sim.core import DEFAULT_LAYOUT
 from sensorimotor.sim.database import generate

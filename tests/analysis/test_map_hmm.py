@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 
 from sensorimotor.analysis.map import hmm
-from sensorimotor.analysis.map.cells import baseline_bits
-from sensorimotor.analysis.map.mapping import Steps
+from sensorimotor.analysis.map.cells import Steps, baseline_bits
 
 
 def _sample(m: hmm.PlainHMM, n: int, rng) -> tuple[np.ndarray, np.ndarray]:

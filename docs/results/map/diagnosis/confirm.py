@@ -14,6 +14,7 @@ import numpy as np
 from sensorimotor.analysis.map import mapping
 from sensorimotor.analysis.map.chmm import fit_chmm, log_likelihood
 from sensorimotor.analysis.map.context import CONTEXT_TAU, N_CONTEXTS, slow_context
+from sensorimotor.analysis.map.localisation import localisation
 from sensorimotor.analysis.map.planning import encoder_of, planning
 from sensorimotor.learn.evaluate import load_run
 from sensorimotor.sim.database import load_database
@@ -33,7 +34,7 @@ for seed in range(5):
     ctx = slow_context(tr.cells, 20, N_CONTEXTS, CONTEXT_TAU, seed)
     m = fit_chmm(tr.cells, tr.actions, 20, 20, 4, seed, context=ctx, n_contexts=N_CONTEXTS)
     bits = -log_likelihood(m.T, te.cells, te.actions, m.n_clones)[1:].mean() / np.log(2)
-    loc, state_mean, occ = mapping.localisation(m, tr, te, db.world)
+    loc, state_mean, occ = localisation(m, tr, te, db.world)
     plans, _ = planning(
         db.world, db.layout, encoder_of(run, db.max_range), km, m, state_mean, occ, seed + 2000, 300
     )

@@ -14,8 +14,8 @@ import numpy as np
 from sensorimotor.analysis.analyze import representation_of
 from sensorimotor.analysis.clusters import assign_clusters, fit_kmeans
 from sensorimotor.analysis.map import chmm
-from sensorimotor.analysis.map.cells import action_bins
-from sensorimotor.analysis.map.mapping import Steps, localisation
+from sensorimotor.analysis.map.cells import Steps, action_bins
+from sensorimotor.analysis.map.localisation import localisation
 from sensorimotor.analysis.map.planning import encoder_of, planning
 from sensorimotor.learn.evaluate import load_run
 from sensorimotor.sim.database import load_database

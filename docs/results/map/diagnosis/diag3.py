@@ -9,9 +9,9 @@ import numpy as np
 
 from sensorimotor.analysis.analyze import representation_of
 from sensorimotor.analysis.clusters import assign_clusters, fit_kmeans
-from sensorimotor.analysis.map.cells import action_bins
+from sensorimotor.analysis.map.cells import Steps, action_bins
 from sensorimotor.analysis.map.chmm import filtered, fit_chmm, log_likelihood
-from sensorimotor.analysis.map.mapping import Steps, grid_index, localisation
+from sensorimotor.analysis.map.localisation import grid_index, localisation
 from sensorimotor.sim.database import load_database
 
 # DATA: the folder of {world}.npz (sensorimotor generate WORLD --steps 1000000 --seed 0);

@@ -13,8 +13,8 @@ from sensorimotor.analysis.analyze import representation_of
 from sensorimotor.analysis.clusters import assign_clusters, fit_kmeans
 from sensorimotor.analysis.map.cells import action_bins
 from sensorimotor.analysis.map.chmm import filtered, fit_chmm
-from sensorimotor.analysis.map.mapping import balanced_accuracy
 from sensorimotor.sim.database import load_database
+from sensorimotor.stats import balanced_accuracy
 
 # DATA: the folder of {world}.npz (sensorimotor generate WORLD --steps 1000000 --seed 0);
 # Z: the z_s cache of zprep.py. Both from the environment; run from the project root.

@@ -10,6 +10,7 @@ import sensorimotor.analysis.map.planning as pl
 from sensorimotor.analysis.map import mapping
 from sensorimotor.analysis.map.chmm import filtered, fit_chmm
 from sensorimotor.analysis.map.context import CONTEXT_TAU, N_CONTEXTS, slow_context
+from sensorimotor.analysis.map.localisation import localisation
 from sensorimotor.learn.evaluate import load_run
 from sensorimotor.sim.database import load_database
 
@@ -23,7 +24,7 @@ mapping.representation_of = lambda r, d, split="test": np.load(f"{Z}/{name}__{sp
 tr, te, km = mapping.cell_steps(run, db, 20, seed)
 ctx = slow_context(tr.cells, 20, N_CONTEXTS, CONTEXT_TAU, seed)
 m = fit_chmm(tr.cells, tr.actions, 20, 20, 4, seed, context=ctx, n_contexts=N_CONTEXTS)
-loc, state_mean, occ = mapping.localisation(m, tr, te, db.world)
+loc, state_mean, occ = localisation(m, tr, te, db.world)
 # place-field density on a 1-unit grid
 w = filtered(m, tr.cells, tr.actions)
 C, S = m.n_clones, m.n_states

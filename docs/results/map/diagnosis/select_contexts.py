@@ -28,8 +28,10 @@ import numpy as np
 from sensorimotor.analysis.analyze import representation_of
 from sensorimotor.analysis.clusters import N_CLUSTERS, fit_kmeans
 from sensorimotor.analysis.map import chmm
+from sensorimotor.analysis.map.cells import Steps
 from sensorimotor.analysis.map.context import CONTEXT_TAU, slow_context
-from sensorimotor.analysis.map.mapping import N_CLONES, Steps, localisation, split_steps
+from sensorimotor.analysis.map.localisation import localisation
+from sensorimotor.analysis.map.mapping import N_CLONES, split_steps
 from sensorimotor.learn.evaluate import load_run
 from sensorimotor.sim.database import load_database
 

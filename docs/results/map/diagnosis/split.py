@@ -12,9 +12,9 @@ import numpy as np
 
 from sensorimotor.analysis.clusters import assign_clusters, fit_kmeans
 from sensorimotor.analysis.map import chmm, mapping
-from sensorimotor.analysis.map.cells import baseline_bits
+from sensorimotor.analysis.map.cells import Steps, baseline_bits
 from sensorimotor.analysis.map.context import decayed_history
-from sensorimotor.analysis.map.mapping import Steps, localisation
+from sensorimotor.analysis.map.localisation import localisation
 from sensorimotor.analysis.map.planning import encoder_of, planning
 from sensorimotor.learn.evaluate import load_run
 from sensorimotor.sim.database import load_database

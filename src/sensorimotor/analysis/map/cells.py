@@ -47,6 +47,16 @@ STRAIGHT = math.pi / 18  # |r| at most this is "straight" (the middle third of [
 SMOOTHING = 1.0  # beta: pseudo-counts of the unigram added to each (cell, action) row
 
 
+@dataclass(frozen=True)
+class Steps:
+    """One split as the map sees it."""
+
+    cells: np.ndarray  # (n,) int64 cell of each step
+    actions: np.ndarray  # (n,) int64 action taken at each step (leads to the next)
+    motors: np.ndarray  # (n, 2) float64 (d, r)
+    poses: np.ndarray  # (n, 3) float64 (x, y, heading)
+
+
 def action_bins(motors: np.ndarray) -> np.ndarray:
     """(N,) int64 action of each motor command (N, 2) ``(d, r)``: see the module docstring."""
     motors = np.asarray(motors, dtype=np.float64)

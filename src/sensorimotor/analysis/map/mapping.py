@@ -10,7 +10,7 @@ cloned HMM (``chmm.fit_chmm``), each clone split by the slow context (``context.
 - **bits per step** of next-cell prediction: unigram, first-order (cell, action) Markov, the
   cell graph, the map (after Viterbi training, the split and pruning) and the map after EM
   alone (before the split);
-- **localisation** from the filtered (causal) map state: the posterior over the map's states
+- **localisation** (``localisation.localisation``) from the filtered (causal) map state: the posterior over the map's states
   at step t, each state labelled on the training split by the posterior-weighted frequency of
   each room (or 10 x 10 grid square) and its mean position, gives the most probable room and
   the expected position; against the cell alone (the same labels per cell) and chance (the
@@ -18,7 +18,7 @@ cloned HMM (``chmm.fit_chmm``), each clone split by the slow context (``context.
   over rooms of each room's recall: chance is 1 / rooms, so a read-out that always names the
   biggest room scores no better than chance). Room numbers need a world whose file names its
   rooms; otherwise they are null ("n/a");
-- **rooms from the graph**: Louvain communities (networkx) of the map's transition graph
+- **rooms from the graph** (``graphs.rooms_from_graph``): Louvain communities (networkx) of the map's transition graph
   (Viterbi counts, both directions, all actions) and of the cell graph; adjusted Rand index of
   the community of each test step (its most probable state) against its room;
 - **planning** in the simulator (``planning.planning``): success rate of the map's planner
@@ -44,7 +44,7 @@ from sensorimotor.analysis.map.cells import (
     ACTION_NAMES,
     N_ACTIONS,
     SMOOTHING,
-    CellGraph,
+    Steps,
     action_bins,
     baseline_bits,
     cell_graph,
@@ -53,12 +53,13 @@ from sensorimotor.analysis.map.chmm import (
     EM_ITERS,
     PSEUDOCOUNT,
     TOL,
-    CloneHMM,
     filtered,
     fit_chmm,
     log_likelihood,
 )
 from sensorimotor.analysis.map.context import CONTEXT_TAU, MAX_CONTEXTS, N_CONTEXTS, slow_context
+from sensorimotor.analysis.map.graphs import map_graphs, networkx_or_refuse, rooms_from_graph
+from sensorimotor.analysis.map.localisation import GRID, localisation
 from sensorimotor.analysis.map.planning import (
     GOAL_RADIUS,
     MAX_PAIRS,
@@ -71,29 +72,16 @@ from sensorimotor.errors import InputError
 from sensorimotor.files import atomic_path, write_text_atomic
 from sensorimotor.sim.database import Database
 from sensorimotor.sim.world import World
-from sensorimotor.stats import balanced_accuracy
 from sensorimotor.version import __version__
 
 N_CLONES = 20  # clones per cell (the issue's 20-cell, 20-clone map)
 MAX_CLUSTERS = 200
 MAX_CLONES = 100
 MAX_STATES = 20_000  # K C N: the random start draws A S^2 numbers (2e9, about 10 s, here)
-GRID = 10  # the position ground truth: a GRID x GRID partition of the world
-PRIOR = 1e-3  # weight of a state's cell's labels added to the state's own (unvisited states)
 OUTPUTS = (
     *("map.json", "map.graphml", "cell_graph.graphml"),
     *("place_fields.png", "map_graph.png", "plans.png"),
 )
-
-
-@dataclass(frozen=True)
-class Steps:
-    """One split as the map sees it."""
-
-    cells: np.ndarray  # (n,) int64 cell of each step
-    actions: np.ndarray  # (n,) int64 action taken at each step (leads to the next)
-    motors: np.ndarray  # (n, 2) float64 (d, r)
-    poses: np.ndarray  # (n, 3) float64 (x, y, heading)
 
 
 def _bounding_box(db, train: Steps, test: Steps) -> tuple[World, Steps, Steps]:
@@ -155,185 +143,6 @@ def split_steps(db: Database, kmeans, z: np.ndarray, split: str = "test") -> Ste
 
 
 # --------------------------------------------------------------------------------------------
-# Localisation
-
-
-def _label_table(weights: np.ndarray, cells: np.ndarray, labels: np.ndarray, n_labels: int, k: int):
-    """(K C, L) posterior-weighted label counts of the states (``weights`` (n, C) over the
-    clones of each step's cell; steps labelled -1 count for nothing)."""
-    C = weights.shape[1]
-    S = k * C
-    ok = labels >= 0
-    table = np.zeros(S * n_labels)
-    for i in range(C):
-        flat = (cells[ok] * C + i) * n_labels + labels[ok]
-        table += np.bincount(flat, weights=weights[ok, i], minlength=S * n_labels)[: S * n_labels]
-    return table.reshape(S, n_labels)
-
-
-def _with_prior(state_table: np.ndarray, cell_table: np.ndarray, C: int) -> np.ndarray:
-    """State label distributions, backed by their cell's (``PRIOR`` pseudo-steps of it)."""
-    cell = cell_table / np.maximum(cell_table.sum(axis=1, keepdims=True), 1e-300)
-    mixed = state_table + PRIOR * np.repeat(cell, C, axis=0)
-    return mixed / np.maximum(mixed.sum(axis=1, keepdims=True), 1e-300)
-
-
-def _predict(weights: np.ndarray, cells: np.ndarray, table: np.ndarray) -> np.ndarray:
-    """(n, L) sum over clones of weight x the state's row of ``table`` (S, L)."""
-    C = weights.shape[1]
-    out = np.zeros((len(cells), table.shape[1]))
-    for i in range(C):
-        out += weights[:, i, None] * table[cells * C + i]
-    return out
-
-
-def grid_index(world: World, xy: np.ndarray, grid: int = GRID) -> np.ndarray:
-    """(n,) index of each point's square in a ``grid x grid`` partition of the world."""
-    gx = np.clip((xy[:, 0] / world.width * grid).astype(np.int64), 0, grid - 1)
-    gy = np.clip((xy[:, 1] / world.height * grid).astype(np.int64), 0, grid - 1)
-    return gy * grid + gx
-
-
-def _accuracy(model, train: Steps, test: Steps, w_train, w_test, train_labels, test_labels, n):
-    """Label accuracy on test steps with a label: map, cells alone, chance."""
-    ones_tr = np.ones((len(train.cells), 1))
-    cell_table = _label_table(ones_tr, train.cells, train_labels, n, model.n_cells)
-    state_table = _label_table(w_train, train.cells, train_labels, n, model.n_cells)
-    state_p = _with_prior(state_table, cell_table, model.n_clones)
-    ok = test_labels >= 0
-    truth = test_labels[ok]
-    by_map = _predict(w_test, test.cells, state_p).argmax(axis=1)[ok]
-    by_cell = cell_table.argmax(axis=1)[test.cells][ok]
-    chance = int(np.argmax(np.bincount(train_labels[train_labels >= 0], minlength=n)))
-    guesses = {"map": by_map, "cells": by_cell, "chance": np.full(len(truth), chance)}
-    plain = {name: float((g == truth).mean()) for name, g in guesses.items()}
-    return plain, {name: balanced_accuracy(truth, g) for name, g in guesses.items()}
-
-
-def _mean_positions(weights: np.ndarray, cells: np.ndarray, xy: np.ndarray, S: int) -> tuple:
-    """(S, 2) posterior-weighted mean position of each state and (S,) its total weight."""
-    C = weights.shape[1]
-    total = np.zeros(S)
-    sums = np.zeros((S, 2))
-    for i in range(C):
-        states = cells * C + i
-        total += np.bincount(states, weights=weights[:, i], minlength=S)[:S]
-        for c in range(2):
-            sums[:, c] += np.bincount(states, weights=weights[:, i] * xy[:, c], minlength=S)[:S]
-    return sums, total
-
-
-def localisation(model: CloneHMM, train: Steps, test: Steps, world: World) -> tuple:
-    """Room and grid accuracy and mean position error (world units) on the test split, from the
-    filtered map state, from the cell alone and by chance (see the module docstring); also each
-    state's mean position (S, 2) and its posterior weight on the training split (S,)."""
-    w_train = filtered(model, train.cells, train.actions)  # (n, C)
-    w_test = filtered(model, test.cells, test.actions)
-    xy_tr, xy_te = train.poses[:, :2], test.poses[:, :2]
-    K, C, S = model.n_cells, model.n_clones, model.n_states
-    out = {}
-    if world.rooms:
-        rooms_tr = world.room_index(xy_tr[:, 0], xy_tr[:, 1])
-        rooms_te = world.room_index(xy_te[:, 0], xy_te[:, 1])
-        out["room_accuracy"], out["balanced_room_accuracy"] = _accuracy(
-            model, train, test, w_train, w_test, rooms_tr, rooms_te, len(world.rooms)
-        )
-    else:
-        out["room_accuracy"] = {"map": None, "cells": None, "chance": None}
-        out["balanced_room_accuracy"] = dict(out["room_accuracy"])
-    out["grid_accuracy"], _ = _accuracy(
-        model,
-        train,
-        test,
-        w_train,
-        w_test,
-        grid_index(world, xy_tr),
-        grid_index(world, xy_te),
-        GRID * GRID,
-    )
-    cell_sums, cell_n = _mean_positions(np.ones((len(train.cells), 1)), train.cells, xy_tr, K)
-    cell_mean = np.divide(
-        cell_sums, cell_n[:, None], out=np.zeros((K, 2)), where=cell_n[:, None] > 0
-    )
-    cell_mean[cell_n == 0] = xy_tr.mean(axis=0)
-    sums, n = _mean_positions(w_train, train.cells, xy_tr, S)
-    state_mean = (sums + PRIOR * np.repeat(cell_mean, C, axis=0)) / (n + PRIOR)[:, None]
-    guess = _predict(w_test, test.cells, state_mean)  # (n, 2) expected position
-    out["position_error"] = {
-        "map": float(np.hypot(*(guess - xy_te).T).mean()),
-        "cells": float(np.hypot(*(cell_mean[test.cells] - xy_te).T).mean()),
-        "chance": float(np.hypot(*(xy_tr.mean(axis=0) - xy_te).T).mean()),
-    }
-    return out, state_mean, n
-
-
-# --------------------------------------------------------------------------------------------
-# Rooms from the graph
-
-
-def _networkx():
-    """networkx (the ``graph`` extra), or an InputError saying how to install it."""
-    try:
-        import networkx
-    except ImportError:
-        raise InputError(
-            "sensorimotor map needs networkx: pip install 'sensorimotor[graph]'"
-        ) from None
-    return networkx
-
-
-def communities(weights: np.ndarray, nodes: np.ndarray, seed: int) -> np.ndarray:
-    """(N,) Louvain community of each node (-1 for those not in ``nodes``) of the undirected
-    graph whose edge i-j weighs ``weights[i, j] + weights[j, i]`` (``weights`` (N, N), dense or
-    scipy sparse); numbered by smallest node."""
-    from scipy.sparse import coo_matrix, triu
-
-    nx = _networkx()
-    w = coo_matrix(weights)
-    w = triu(w + w.T).tocoo()  # duplicates summed
-    graph = nx.Graph()
-    graph.add_nodes_from(int(i) for i in nodes)
-    keep = np.zeros(w.shape[0], dtype=bool)
-    keep[nodes] = True
-    for i, j, v in zip(w.row, w.col, w.data, strict=True):
-        if v and keep[i] and keep[j]:
-            graph.add_edge(int(i), int(j), weight=float(v))
-    found = nx.community.louvain_communities(graph, weight="weight", seed=seed)
-    label = np.full(w.shape[0], -1, dtype=np.int64)
-    for c, members in enumerate(sorted(found, key=min)):
-        label[list(members)] = c
-    return label
-
-
-def rooms_from_graph(
-    model: CloneHMM, graph: CellGraph, test: Steps, world: World, seed: int
-) -> tuple[dict, np.ndarray]:
-    """Communities of the map's and of the cell graph's transitions; adjusted Rand index of each
-    test step's community against its room (null without named rooms)."""
-    from sklearn.metrics import adjusted_rand_score
-
-    state_comm = communities(model.edge_counts(), np.flatnonzero(model.active), seed)
-    cell_comm = communities(graph.counts.sum(axis=0), np.arange(graph.k), seed)
-    w = filtered(model, test.cells, test.actions)
-    best = test.cells * model.n_clones + w.argmax(axis=1)
-    out = {
-        "communities": {
-            "map": int(state_comm.max()) + 1,
-            "cells": int(cell_comm.max()) + 1,
-        },
-        "adjusted_rand": None,
-        "adjusted_rand_cells": None,
-        "names": [r.name for r in world.rooms],
-    }
-    if world.rooms:
-        room = world.room_index(test.poses[:, 0], test.poses[:, 1])
-        ok = room >= 0
-        out["adjusted_rand"] = float(adjusted_rand_score(room[ok], state_comm[best][ok]))
-        out["adjusted_rand_cells"] = float(adjusted_rand_score(room[ok], cell_comm[test.cells][ok]))
-    return out, state_comm
-
-
-# --------------------------------------------------------------------------------------------
 # The whole map, its files
 
 
@@ -371,38 +180,6 @@ def _versions() -> dict:
     return versions
 
 
-def map_graphs(model: CloneHMM, graph: CellGraph, state_mean, occupancy, comm, world: World):
-    """(the map, the cell graph) as networkx directed graphs: the map's active states with their
-    cell, clone (after the split: clone x contexts + context), mean position, room and
-    community, edges with their Viterbi counts per action; the cell graph as a multigraph, one
-    edge per (cell, action, next cell) with its motor stats."""
-    nx = _networkx()
-    m = nx.DiGraph(name="map")
-    rooms = world.room_index(state_mean[:, 0], state_mean[:, 1]) if world.rooms else None
-    for s in np.flatnonzero(model.active):
-        m.add_node(
-            int(s),
-            cell=int(s // model.n_clones),
-            clone=int(s % model.n_clones),
-            x=float(state_mean[s, 0]),
-            y=float(state_mean[s, 1]),
-            occupancy=float(occupancy[s]),
-            community=int(comm[s]),
-            room=world.rooms[rooms[s]].name if rooms is not None and rooms[s] >= 0 else "",
-        )
-    edges: dict[tuple[int, int], dict] = {}
-    for i, j, a, count in zip(*model.transitions(), strict=True):
-        edge = edges.setdefault((int(i), int(j)), {f"count_{n}": 0 for n in ACTION_NAMES})
-        edge[f"count_{ACTION_NAMES[a]}"] = int(count)
-    for (i, j), per_action in sorted(edges.items()):
-        m.add_edge(i, j, weight=float(sum(per_action.values())), **per_action)
-    g = nx.MultiDiGraph(name="cell graph")
-    g.add_nodes_from(range(graph.k))
-    for e in graph.edges():
-        g.add_edge(e.pop("source"), e.pop("target"), key=e["action"], **e)
-    return m, g
-
-
 def map_files(
     run: str | Path,
     data: str | Path,
@@ -425,7 +202,7 @@ def map_files(
     from sensorimotor.sim.plots import save_figure
 
     check_settings(clusters, clones, contexts)
-    nx = _networkx()
+    nx = networkx_or_refuse()
     if not 0 <= pairs <= MAX_PAIRS:  # before the inputs are read
         raise InputError(f"--pairs must be from 0 to {MAX_PAIRS:,}, got {pairs}")
     run, db, fit_db, out = load_inputs(run, data, fit_data, out, OUTPUTS)

@@ -1,0 +1,105 @@
+"""The map as a graph: Louvain communities of its transitions (rooms from the graph, scored by
+the adjusted Rand index against the rooms) and the networkx graphs written as GraphML."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sensorimotor.analysis.map.cells import ACTION_NAMES, CellGraph, Steps
+from sensorimotor.analysis.map.chmm import CloneHMM, filtered
+from sensorimotor.errors import InputError
+from sensorimotor.sim.world import World
+
+
+def networkx_or_refuse():
+    """networkx (the ``graph`` extra), or an InputError saying how to install it."""
+    try:
+        import networkx
+    except ImportError:
+        raise InputError(
+            "sensorimotor map needs networkx: pip install 'sensorimotor[graph]'"
+        ) from None
+    return networkx
+
+
+def communities(weights: np.ndarray, nodes: np.ndarray, seed: int) -> np.ndarray:
+    """(N,) Louvain community of each node (-1 for those not in ``nodes``) of the undirected
+    graph whose edge i-j weighs ``weights[i, j] + weights[j, i]`` (``weights`` (N, N), dense or
+    scipy sparse); numbered by smallest node."""
+    from scipy.sparse import coo_matrix, triu
+
+    nx = networkx_or_refuse()
+    w = coo_matrix(weights)
+    w = triu(w + w.T).tocoo()  # duplicates summed
+    graph = nx.Graph()
+    graph.add_nodes_from(int(i) for i in nodes)
+    keep = np.zeros(w.shape[0], dtype=bool)
+    keep[nodes] = True
+    for i, j, v in zip(w.row, w.col, w.data, strict=True):
+        if v and keep[i] and keep[j]:
+            graph.add_edge(int(i), int(j), weight=float(v))
+    found = nx.community.louvain_communities(graph, weight="weight", seed=seed)
+    label = np.full(w.shape[0], -1, dtype=np.int64)
+    for c, members in enumerate(sorted(found, key=min)):
+        label[list(members)] = c
+    return label
+
+
+def rooms_from_graph(
+    model: CloneHMM, graph: CellGraph, test: Steps, world: World, seed: int
+) -> tuple[dict, np.ndarray]:
+    """Communities of the map's and of the cell graph's transitions; adjusted Rand index of each
+    test step's community against its room (null without named rooms)."""
+    from sklearn.metrics import adjusted_rand_score
+
+    state_comm = communities(model.edge_counts(), np.flatnonzero(model.active), seed)
+    cell_comm = communities(graph.counts.sum(axis=0), np.arange(graph.k), seed)
+    w = filtered(model, test.cells, test.actions)
+    best = test.cells * model.n_clones + w.argmax(axis=1)
+    out = {
+        "communities": {
+            "map": int(state_comm.max()) + 1,
+            "cells": int(cell_comm.max()) + 1,
+        },
+        "adjusted_rand": None,
+        "adjusted_rand_cells": None,
+        "names": [r.name for r in world.rooms],
+    }
+    if world.rooms:
+        room = world.room_index(test.poses[:, 0], test.poses[:, 1])
+        ok = room >= 0
+        out["adjusted_rand"] = float(adjusted_rand_score(room[ok], state_comm[best][ok]))
+        out["adjusted_rand_cells"] = float(adjusted_rand_score(room[ok], cell_comm[test.cells][ok]))
+    return out, state_comm
+
+
+def map_graphs(model: CloneHMM, graph: CellGraph, state_mean, occupancy, comm, world: World):
+    """(the map, the cell graph) as networkx directed graphs: the map's active states with their
+    cell, clone (after the split: clone x contexts + context), mean position, room and
+    community, edges with their Viterbi counts per action; the cell graph as a multigraph, one
+    edge per (cell, action, next cell) with its motor stats."""
+    nx = networkx_or_refuse()
+    m = nx.DiGraph(name="map")
+    rooms = world.room_index(state_mean[:, 0], state_mean[:, 1]) if world.rooms else None
+    for s in np.flatnonzero(model.active):
+        m.add_node(
+            int(s),
+            cell=int(s // model.n_clones),
+            clone=int(s % model.n_clones),
+            x=float(state_mean[s, 0]),
+            y=float(state_mean[s, 1]),
+            occupancy=float(occupancy[s]),
+            community=int(comm[s]),
+            room=world.rooms[rooms[s]].name if rooms is not None and rooms[s] >= 0 else "",
+        )
+    edges: dict[tuple[int, int], dict] = {}
+    for i, j, a, count in zip(*model.transitions(), strict=True):
+        edge = edges.setdefault((int(i), int(j)), {f"count_{n}": 0 for n in ACTION_NAMES})
+        edge[f"count_{ACTION_NAMES[a]}"] = int(count)
+    for (i, j), per_action in sorted(edges.items()):
+        m.add_edge(i, j, weight=float(sum(per_action.values())), **per_action)
+    g = nx.MultiDiGraph(name="cell graph")
+    g.add_nodes_from(range(graph.k))
+    for e in graph.edges():
+        g.add_edge(e.pop("source"), e.pop("target"), key=e["action"], **e)
+    return m, g
