@@ -62,9 +62,9 @@ def main(work: Path) -> None:
     for kind in ("sm", "rec-sm"):
         out = work / kind
         if not out.exists():
+            args = ["--data", str(db), "--out", str(out), "--seeds", "0,1"]
             subprocess.run(
-                [*cli, "train", kind, "--data", str(db), "--out", str(out), "--seeds", "0,1"]
-                + ["--max-epochs", str(EPOCHS)],
+                [*cli, "train", kind, *args, "--max-epochs", str(EPOCHS)],
                 check=True,
                 capture_output=True,
             )
