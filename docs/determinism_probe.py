@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import hashlib
 import os
-import platform
 import subprocess
 import sys
 from pathlib import Path
@@ -20,20 +19,10 @@ from pathlib import Path
 import torch
 
 from sensorimotor.files import file_hash
+from sensorimotor.jobs.workers import cpu_name
 
 STEPS = 20_000
 EPOCHS = 2
-
-
-def cpu_name() -> str:
-    """The CPU's model name (``/proc/cpuinfo``), or the platform's processor string."""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
 
 
 def weights_hash(model_pt: Path) -> str:
