@@ -83,6 +83,30 @@ def test_the_true_pose_planner_reaches_goals_on_the_map_planners_pairs():
     assert all(np.array_equal(x[0], y[0]) and x[1] == y[1] for x, y in zip(a, b, strict=True))
 
 
+def test_the_true_pose_traces_are_its_episodes_and_are_drawn_beside_the_maps():
+    """``traces`` holds each episode from its start to the goal disc, as many steps as it
+    reports; ``plot_plans`` draws them beneath the map's paths, one more line a panel."""
+    from sensorimotor.analysis.map.plots import plot_plans
+
+    world = load_world("rooms1")
+    traces: list = []
+    plans = ceilings.true_pose_planning(world, DEFAULT_LAYOUT, 0, 3, traces=traces)
+    assert plans == ceilings.true_pose_planning(world, DEFAULT_LAYOUT, 0, 3)  # same episodes
+    for (path, goal, steps), (goal_xy, start, _) in zip(
+        traces, start_goal_pairs(world, 0, 3), strict=True
+    ):
+        assert np.array_equal(goal, goal_xy)
+        assert np.allclose(path[0], start[:2])
+        assert steps is not None
+        assert len(path) == steps + 1
+        assert math.hypot(*(path[-1] - goal)) <= planning.GOAL_RADIUS
+        assert math.hypot(*(path[-2] - goal)) > planning.GOAL_RADIUS
+    mine = [(p + 1.0, g, None) for p, g, _ in traces]
+    lines = [len(ax.lines) for ax in plot_plans(world, mine, 4.0, "t", traces).axes]
+    alone = [len(ax.lines) for ax in plot_plans(world, mine, 4.0, "t").axes]
+    assert [a - b for a, b in zip(lines, alone, strict=True)] == [1, 1, 1]
+
+
 def _spy(module, monkeypatch) -> list:
     """Record every (heading, d, r) that ``module`` executes through ``apply_motor``."""
     seen, real = [], module.apply_motor

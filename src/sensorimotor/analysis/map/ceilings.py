@@ -313,14 +313,18 @@ def true_pose_episode(
     rng: np.random.Generator,
     budget: int = BUDGET,
     moves: Moves = PAPER_MOVES,
+    trace: list | None = None,
 ) -> int | None:
     """Steps to the goal (None if not reached within ``budget``) of the true-pose planner
-    (module docstring) from ``start``, ``distance`` (cells,) the grid's distance to the goal."""
+    (module docstring) from ``start``, ``distance`` (cells,) the grid's distance to the goal.
+    The positions visited are appended to ``trace`` if given."""
     far = np.where(np.isfinite(distance), distance, np.nanmax(np.where(np.isfinite(distance),
                    distance, np.nan)) + 1e3)  # fmt: skip
     x, y, heading = start[0], start[1], moves.heading(start[2])
     means = [moves.expected(a) for a in MOVING]  # (d, r): the step, then the new heading
     for t in range(budget + 1):
+        if trace is not None:
+            trace.append((x, y))
         if math.hypot(x - goal_xy[0], y - goal_xy[1]) <= GOAL_RADIUS:
             return t
         if t == budget:
@@ -342,12 +346,18 @@ def true_pose_episode(
 
 
 def true_pose_planning(
-    world: World, layout: SensorLayout, seed: int, n_pairs: int, budget: int = BUDGET,
+    world: World,
+    layout: SensorLayout,
+    seed: int,
+    n_pairs: int,
+    budget: int = BUDGET,
     moves: Moves = PAPER_MOVES,
+    traces: list | None = None,
 ) -> dict:
     """Success rate and median steps of the true-pose planner on the map planner's start/goal
     pairs (``planning.start_goal_pairs``: the same seed gives the same pairs), each episode's
-    generator seeded as the map's episode on that pair."""
+    generator seeded as the map's episode on that pair. With ``traces``, each episode's
+    (positions (n, 2), goal (2,), steps or None) is appended to it (the figure's pairs)."""
     from scipy.sparse.csgraph import dijkstra
 
     graph, shape = grid_graph(world)
@@ -355,8 +365,11 @@ def true_pose_planning(
     for goal_xy, start, seeds in start_goal_pairs(world, seed, n_pairs):
         distance = dijkstra(graph, directed=False, indices=_cell_of(goal_xy, shape))
         rng = np.random.default_rng(seeds[0])
+        trace: list | None = [] if traces is not None else None
         steps.append(true_pose_episode(world, layout, distance, shape, goal_xy, start, rng, budget,
-                                       moves))  # fmt: skip
+                                       moves, trace))  # fmt: skip
+        if traces is not None:
+            traces.append((np.array(trace), goal_xy, steps[-1]))
     done = [s for s in steps if s is not None]
     return {
         "success": len(done) / n_pairs if n_pairs else None,

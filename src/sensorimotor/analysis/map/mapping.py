@@ -10,17 +10,18 @@ cloned HMM (``chmm.fit_chmm``), each clone split by the slow context (``context.
 - **bits per step** of next-cell prediction: unigram, first-order (cell, action) Markov, the
   cell graph, the map (after Viterbi training, the split and pruning) and the map after EM
   alone (before the split);
-- **localisation** (``localisation.localisation``) from the filtered (causal) map state: the posterior over the map's states
-  at step t, each state labelled on the training split by the posterior-weighted frequency of
-  each room (or 10 x 10 grid square) and its mean position, gives the most probable room and
-  the expected position; against the cell alone (the same labels per cell) and chance (the
-  most frequent room, the mean position). Room accuracy is given plain and balanced (the mean
-  over rooms of each room's recall: chance is 1 / rooms, so a read-out that always names the
-  biggest room scores no better than chance). Room numbers need a world whose file names its
-  rooms; otherwise they are null ("n/a");
-- **rooms from the graph** (``graphs.rooms_from_graph``): Louvain communities (networkx) of the map's transition graph
-  (Viterbi counts, both directions, all actions) and of the cell graph; adjusted Rand index of
-  the community of each test step (its most probable state) against its room;
+- **localisation** (``localisation.localisation``) from the filtered (causal) map state: the
+  posterior over the map's states at step t, each state labelled on the training split by the
+  posterior-weighted frequency of each room (or 10 x 10 grid square) and its mean position,
+  gives the most probable room and the expected position; against the cell alone (the same
+  labels per cell) and chance (the most frequent room, the mean position). Room accuracy is
+  given plain and balanced (the mean over rooms of each room's recall: chance is 1 / rooms, so
+  a read-out that always names the biggest room scores no better than chance). Room numbers
+  need a world whose file names its rooms; otherwise they are null ("n/a");
+- **rooms from the graph** (``graphs.rooms_from_graph``): Louvain communities (networkx) of
+  the map's transition graph (Viterbi counts, both directions, all actions) and of the cell
+  graph; adjusted Rand index of the community of each test step (its most probable state)
+  against its room;
 - **planning** in the simulator (``planning.planning``): success rate of the map's planner
   and of the paper's random behaviour over ``pairs`` start/goal pairs (null with 0 pairs).
 
@@ -39,7 +40,7 @@ import numpy as np
 from sensorimotor.analysis.analyze import RAW, load_inputs, representation_of
 from sensorimotor.analysis.clusters import N_CLUSTERS, assign_clusters, fit_kmeans
 from sensorimotor.analysis.map.baselines import baselines
-from sensorimotor.analysis.map.ceilings import NO_CEILING, ceilings
+from sensorimotor.analysis.map.ceilings import NO_CEILING, ceilings, true_pose_planning
 from sensorimotor.analysis.map.cells import (
     ACTION_NAMES,
     N_ACTIONS,
@@ -295,9 +296,11 @@ def map_files(
     )
     figures = {"place_fields.png": place, "map_graph.png": drawn.figure}
     if traces:
-        figures["plans.png"] = plot_plans(
-            world, traces, GOAL_RADIUS, f"{metrics['model']} on {world.name}: the map plans"
-        )
+        reference: list = []  # the true-pose planner on the same pairs (ceilings.py)
+        true_pose_planning(world, db.layout, seed, len(traces), moves=Moves(db.behaviour),
+                           traces=reference)  # fmt: skip
+        title = f"{metrics['model']} on {world.name}: the map plans (blue), the true pose (grey)"
+        figures["plans.png"] = plot_plans(world, traces, GOAL_RADIUS, title, reference)
     out.mkdir(parents=True, exist_ok=True)
     files = []
     for name, g in (("map.graphml", the_map), ("cell_graph.graphml", the_cells)):

@@ -107,18 +107,27 @@ def plot_map_graph(
     return ax
 
 
-def plot_plans(world: World, traces: list, radius: float, title: str) -> Figure:
-    """One panel per planned episode: its trajectory, start (circle) and goal (its disc)."""
+def plot_plans(
+    world: World, traces: list, radius: float, title: str, reference: list | None = None
+) -> Figure:
+    """One panel per planned episode: its trajectory, start (circle) and goal (its disc); with
+    ``reference`` (the same pairs' episodes of another planner, such as the true pose's), its
+    trajectory in grey beneath."""
     n = max(1, len(traces))
     aspect = world_aspect([world])
     fig = Figure(figsize=(n * PANEL_SIZE, PANEL_SIZE * aspect + 0.5), layout="constrained")
     axes = fig.subplots(1, n, squeeze=False)[0]
-    for ax, (path, goal, steps) in zip(axes, traces, strict=False):
+    others = reference if reference is not None else [None] * len(traces)
+    for ax, (path, goal, steps), other in zip(axes, traces, others, strict=False):
         plot_world(world, ax)
         ax.add_patch(mpl.patches.Circle(goal, radius, color="tab:green", alpha=0.3, lw=0))
+        if other is not None:
+            ax.plot(other[0][:, 0], other[0][:, 1], color="0.5", lw=1.2, ls="--")
         ax.plot(path[:, 0], path[:, 1], color="tab:blue", lw=0.8)
         ax.plot(*path[0], "o", color="tab:blue", ms=5)
         done = f"goal in {steps} steps" if steps is not None else "goal not reached"
+        if other is not None:
+            done += f" (true pose: {'not reached' if other[2] is None else other[2]})"
         ax.set_title(f"{done}", fontsize="small")
     fig.suptitle(title)
     return fig
