@@ -7,7 +7,8 @@
 (``sensorimotor generate WORLD --steps 1000000 --seed 0``; checked against the runs' recorded
 SHA-256). The runs are ``docs/results/runs/{world}__{model}__s{seed}``. Each pass of
 ``--seeds`` (1, then 3, then 5 seeds) fits only the maps not fitted yet (the stage's cache)
-and writes ``OUT/map/map.json`` and ``OUT/map/map.md``; one worker, in this process.
+and writes ``OUT/map/map.json`` and ``OUT/map/map.md``; ``--workers N`` maps at a time
+(default one, in this process; ``--zcache`` applies in this process only).
 ``--extra-models s,sm,rec-s --extra-seeds M``: those models too, seeds 0..M-1 only.
 ``--raw-seeds N``: raw mapped with seeds 0..N-1 only (default: as many as the runs), so that
 the CPU goes to the trained runs' seeds first. ``--zcache DIR``: z_s of each run on its own world's splits, read from
@@ -45,6 +46,7 @@ def main(argv: list[str]) -> None:
     ap.add_argument("--extra-models", default="")
     ap.add_argument("--extra-seeds", type=int, default=1)
     ap.add_argument("--zcache", type=Path, default=None)
+    ap.add_argument("--workers", type=int, default=1)
     a = ap.parse_args(argv)
     worlds = tuple(a.worlds.split(","))
     models = [m for m in a.models.split(",") if m != "raw"]
@@ -81,7 +83,8 @@ def main(argv: list[str]) -> None:
             + [(w, m, s) for w in worlds for m in extra for s in range(min(n, a.extra_seeds))],
             run_dir=lambda w, m, s: RUNS / f"{w}__{m}__s{s}",
         )
-        ctx = ex.Context(rep, "map", run_jobs, 1, lambda j, m: print(j, m, flush=True), print)
+        say = lambda j, m: print(j, m, flush=True)  # noqa: E731
+        ctx = ex.Context(rep, "map", run_jobs, a.workers, say, print)
         found = ex.run_experiment(ctx)
         md = to_markdown(ex.sections(rep, {"map": found}), a.out)
         write_text_atomic(a.out / "map" / "map.md", md)
