@@ -27,13 +27,11 @@ EPOCHS = 2
 
 def weights_hash(model_pt: Path) -> str:
     """SHA-256 of a run's weights, tensor by tensor (``torch.load(weights_only=True)``)."""
-    state = torch.load(model_pt, map_location="cpu", weights_only=True)
-    state = state.get("model", state) if isinstance(state, dict) else state
+    state = torch.load(model_pt, map_location="cpu", weights_only=True)  # a state_dict
     h = hashlib.sha256()
     for name, tensor in state.items():
-        if torch.is_tensor(tensor):
-            h.update(name.encode())
-            h.update(tensor.detach().contiguous().numpy().tobytes())
+        h.update(name.encode())
+        h.update(tensor.contiguous().numpy().tobytes())
     return h.hexdigest()
 
 

@@ -48,6 +48,8 @@ def main(argv: list[str]) -> None:
     ap.add_argument("--zcache", type=Path, default=None)
     ap.add_argument("--workers", type=int, default=1)
     a = ap.parse_args(argv)
+    if not 1 <= a.workers <= 64:  # each worker holds a database and a map (about 1-2 GB)
+        sys.exit(f"--workers must lie in [1, 64], got {a.workers}")
     worlds = tuple(a.worlds.split(","))
     models = [m for m in a.models.split(",") if m != "raw"]
     extra = [m for m in a.extra_models.split(",") if m]
@@ -83,12 +85,15 @@ def main(argv: list[str]) -> None:
             + [(w, m, s) for w in worlds for m in extra for s in range(min(n, a.extra_seeds))],
             run_dir=lambda w, m, s: RUNS / f"{w}__{m}__s{s}",
         )
-        say = lambda j, m: print(j, m, flush=True)  # noqa: E731
-        ctx = ex.Context(rep, "map", run_jobs, a.workers, say, print)
+        ctx = ex.Context(rep, "map", run_jobs, a.workers, _say, print)
         found = ex.run_experiment(ctx)
         md = to_markdown(ex.sections(rep, {"map": found}), a.out)
         write_text_atomic(a.out / "map" / "map.md", md)
         print(f"{n} seed(s) done", flush=True)
+
+
+def _say(job: str, message: str) -> None:
+    print(job, message, flush=True)
 
 
 if __name__ == "__main__":

@@ -45,17 +45,21 @@ def communities(weights: np.ndarray, nodes: np.ndarray, seed: int) -> np.ndarray
     return label
 
 
+def best_states(model: CloneHMM, steps: Steps) -> np.ndarray:
+    """(n,) the most probable state of each step under the filter (causal)."""
+    return steps.cells * model.n_clones + filtered(model, steps.cells, steps.actions).argmax(axis=1)
+
+
 def rooms_from_graph(
-    model: CloneHMM, graph: CellGraph, test: Steps, world: World, seed: int
+    model: CloneHMM, graph: CellGraph, test: Steps, best: np.ndarray, world: World, seed: int
 ) -> tuple[dict, np.ndarray]:
     """Communities of the map's and of the cell graph's transitions; adjusted Rand index of each
-    test step's community against its room (null without named rooms)."""
+    test step's community (that of ``best``, its ``best_states``) against its room (null
+    without named rooms)."""
     from sklearn.metrics import adjusted_rand_score
 
     state_comm = communities(model.edge_counts(), np.flatnonzero(model.active), seed)
     cell_comm = communities(graph.counts.sum(axis=0), np.arange(graph.k), seed)
-    w = filtered(model, test.cells, test.actions)
-    best = test.cells * model.n_clones + w.argmax(axis=1)
     out = {
         "communities": {
             "map": int(state_comm.max()) + 1,

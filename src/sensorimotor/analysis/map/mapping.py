@@ -54,12 +54,16 @@ from sensorimotor.analysis.map.chmm import (
     EM_ITERS,
     PSEUDOCOUNT,
     TOL,
-    filtered,
     fit_chmm,
     log_likelihood,
 )
 from sensorimotor.analysis.map.context import CONTEXT_TAU, MAX_CONTEXTS, N_CONTEXTS, slow_context
-from sensorimotor.analysis.map.graphs import map_graphs, networkx_or_refuse, rooms_from_graph
+from sensorimotor.analysis.map.graphs import (
+    best_states,
+    map_graphs,
+    networkx_or_refuse,
+    rooms_from_graph,
+)
 from sensorimotor.analysis.map.localisation import GRID, localisation
 from sensorimotor.analysis.map.planning import (
     GOAL_RADIUS,
@@ -227,7 +231,8 @@ def map_files(
     for name, T in (("map", model.T), ("map_em", model.T_em)):
         bits[name] = float(-log_likelihood(T, test.cells, test.actions)[1:].mean()) / math.log(2)
     loc, state_mean, occupancy = localisation(model, train, test, world)
-    rooms, comm = rooms_from_graph(model, graph, test, world, seed)
+    best = best_states(model, test)  # the place fields' and the communities' state of a step
+    rooms, comm = rooms_from_graph(model, graph, test, best, world, seed)
     plans, traces = {"success": {"map": None, "random": None}, "pairs": 0}, []
     if pairs:
         encoder = encoder_of(run, db.max_range)
@@ -278,7 +283,6 @@ def map_files(
     }
     metrics = _strict(metrics)
     the_map, the_cells = map_graphs(model, graph, state_mean, occupancy, comm, world)
-    best = test.cells * model.n_clones + filtered(model, test.cells, test.actions).argmax(axis=1)
     seen = np.bincount(best, minlength=model.n_states).astype(np.float64)  # test occupancy
     box = not db.has_walls  # the frame is the path's bounding box, not walls
     place = plot_place_fields(
@@ -296,11 +300,11 @@ def map_files(
     )
     figures = {"place_fields.png": place, "map_graph.png": drawn.figure}
     if traces:
-        reference: list = []  # the true-pose planner on the same pairs (ceilings.py)
+        true_pose: list = []  # the same pairs (the planner's seed), its first len(traces)
         true_pose_planning(world, db.layout, seed, len(traces), moves=Moves(db.behaviour),
-                           traces=reference)  # fmt: skip
+                           traces=true_pose)  # fmt: skip
         title = f"{metrics['model']} on {world.name}: the map plans (blue), the true pose (grey)"
-        figures["plans.png"] = plot_plans(world, traces, GOAL_RADIUS, title, reference)
+        figures["plans.png"] = plot_plans(world, traces, GOAL_RADIUS, title, true_pose)
     out.mkdir(parents=True, exist_ok=True)
     files = []
     for name, g in (("map.graphml", the_map), ("cell_graph.graphml", the_cells)):

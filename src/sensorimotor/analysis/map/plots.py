@@ -108,16 +108,16 @@ def plot_map_graph(
 
 
 def plot_plans(
-    world: World, traces: list, radius: float, title: str, reference: list | None = None
+    world: World, traces: list, radius: float, title: str, true_pose: list | None = None
 ) -> Figure:
     """One panel per planned episode: its trajectory, start (circle) and goal (its disc); with
-    ``reference`` (the same pairs' episodes of another planner, such as the true pose's), its
-    trajectory in grey beneath."""
+    ``true_pose`` (the true-pose planner's episodes on the same pairs, as ``traces``), its
+    trajectory in grey beneath and its steps in the title."""
     n = max(1, len(traces))
     aspect = world_aspect([world])
     fig = Figure(figsize=(n * PANEL_SIZE, PANEL_SIZE * aspect + 0.5), layout="constrained")
     axes = fig.subplots(1, n, squeeze=False)[0]
-    others = reference if reference is not None else [None] * len(traces)
+    others = true_pose if true_pose is not None else [None] * len(traces)
     for ax, (path, goal, steps), other in zip(axes, traces, others, strict=False):
         plot_world(world, ax)
         ax.add_patch(mpl.patches.Circle(goal, radius, color="tab:green", alpha=0.3, lw=0))
@@ -128,6 +128,6 @@ def plot_plans(
         done = f"goal in {steps} steps" if steps is not None else "goal not reached"
         if other is not None:
             done += f" (true pose: {'not reached' if other[2] is None else other[2]})"
-        ax.set_title(f"{done}", fontsize="small")
+        ax.set_title(done, fontsize="small")
     fig.suptitle(title)
     return fig
