@@ -49,7 +49,7 @@ def main(argv: list[str]) -> None:
     ap.add_argument("--workers", type=int, default=1)
     a = ap.parse_args(argv)
     if not 1 <= a.workers <= 64:  # each worker holds a database and a map (about 1-2 GB)
-        sys.exit(f"--workers must lie in [1, 64], got {a.workers}")
+        ap.error(f"--workers must lie in [1, 64], got {a.workers}")
     worlds = tuple(a.worlds.split(","))
     models = [m for m in a.models.split(",") if m != "raw"]
     extra = [m for m in a.extra_models.split(",") if m]
