@@ -1,0 +1,135 @@
+"""Can Rec-SMA's memory hold the pose when it is told it? (issue 32's diagnosis)
+
+    PYTHONPATH=src python docs/results/memory/pose_supervised.py TRAIN.npz FRESH.npz [--epochs N]
+
+Rec-SMA's memory (``learn/models.py``: readings and the previous command -> LSTM 3 x 32 ->
+z_s, 10-d) learns from prediction alone and probes at room 0.43 balanced accuracy. This script
+trains the same memory, from the same inputs, with the pose as its target: a linear read-out
+of z_s fitted to the position (x and y standardised) by mean squared error (a loss of 2
+means nothing learnt), truncated backpropagation
+through 256 steps with the state carried, as Rec-SMA trains. It then scores z_s with the
+issue's own probes (``analysis.analyze.probe_places``, on ``FRESH``: fitted on its training
+split, scored on its test split after 200 steps). Supervision is what the self-supervised
+model does not get: if even this memory stays far from the goals, its size or inputs are the
+limit; if it reaches them, the prediction loss is.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from sensorimotor.analysis.analyze import probe_places
+from sensorimotor.learn.evaluate import Run
+from sensorimotor.learn.models import REC_SMA, ModelConfig, build_model
+from sensorimotor.sim.database import load_database, scale_motors, scale_sensors
+
+
+def standard_position(poses: np.ndarray) -> np.ndarray:
+    """(n, 3) poses -> (n, 2) x and y, each to mean 0 and variance 1 (the heading is left out:
+    in a world of right angles, readings fix it only up to a quarter turn)."""
+    xy = poses[:, :2].astype(np.float64)
+    return ((xy - xy.mean(0)) / xy.std(0)).astype(np.float32)
+
+
+def displacements(poses: np.ndarray, horizon: int, scale: float = 10.0) -> np.ndarray:
+    """(n, 3) poses -> (n, 2): the position relative to the pose at the start of its
+    ``horizon``-step window, in that pose's frame, over ``scale`` units: what integrating the
+    commands from the window's start gives, without any wall or map."""
+    p = poses.astype(np.float64)
+    start = p[(np.arange(len(p)) // horizon) * horizon]
+    dx, dy, h = p[:, 0] - start[:, 0], p[:, 1] - start[:, 1], start[:, 2]
+    along, across = np.cos(h) * dx + np.sin(h) * dy, -np.sin(h) * dx + np.cos(h) * dy
+    return (np.stack([along, across], 1) / scale).astype(np.float32)
+
+
+def r2(pred: torch.Tensor, target: torch.Tensor) -> list[float]:
+    """R^2 of each column."""
+    pred, target = pred.reshape(-1, 2).double(), target.reshape(-1, 2).double()
+    sse, sst = ((pred - target) ** 2).sum(0), ((target - target.mean(0)) ** 2).sum(0)
+    return [round(float(v), 4) for v in 1 - sse / sst]
+
+
+def streams(a: np.ndarray, n: int) -> torch.Tensor:
+    """(T, D) -> (n, T // n, D): n contiguous streams (the remainder dropped)."""
+    t = len(a) // n
+    return torch.from_numpy(np.ascontiguousarray(a[: n * t])).reshape(n, t, -1)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("train")
+    ap.add_argument("fresh")
+    ap.add_argument("--epochs", type=int, default=20)
+    ap.add_argument("--streams", type=int, default=32)
+    ap.add_argument("--horizon", type=int, default=256)
+    ap.add_argument("--curriculum", type=lambda v: [int(h) for h in v.split(",")], default=[],
+                    help="shorter horizons trained first, e.g. 32,64,128")
+    ap.add_argument("--stage-epochs", type=int, default=5, help="epochs of each curriculum stage")
+    ap.add_argument("--lr", type=float, default=1e-3)
+    ap.add_argument("--target", choices=("position", "displacement"), default="position",
+                    help="displacement: from each window's start, the memory reset there")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--set", nargs="*", default=[], help="ModelConfig sizes, e.g. lstm_size=64")
+    args = ap.parse_args()
+    torch.manual_seed(args.seed)
+    torch.set_num_threads(1)
+    sizes = {k: int(v) for k, v in (s.split("=") for s in args.set)}
+    model = build_model(ModelConfig(kind=REC_SMA, **sizes), seed=args.seed)
+    head = torch.nn.Linear(model.config.z_sensors, 2)
+    params = [p for n, p in model.named_parameters() if n.startswith(("lstm", "sensor_"))]
+    opt = torch.optim.Adam(params + list(head.parameters()), lr=args.lr)
+    db, fresh = load_database(args.train), load_database(args.fresh)
+    part = db.take("train")
+    reset = args.target == "displacement"
+    stages = [(h, args.stage_epochs) for h in args.curriculum] + [(args.horizon, args.epochs)]
+    for horizon, epochs in stages:
+        n = len(part.sensors)
+        if reset:  # whole windows in every stream
+            n = n // (args.streams * horizon) * args.streams * horizon
+        s = streams(scale_sensors(part.sensors[:n], db.max_range), args.streams)
+        m = streams(scale_motors(part.motors[:n]), args.streams)
+        target = displacements(part.poses[:n], horizon) if reset else standard_position(part.poses)
+        y = streams(target[:n], args.streams)
+        for epoch in range(epochs):
+            t0, state, total = time.time(), None, 0.0
+            for i in range(0, s.shape[1], horizon):
+                state = None if reset else state
+                z, state = model.encode(s[:, i : i + horizon], state, m[:, i : i + horizon])
+                loss = ((head(z) - y[:, i : i + horizon]) ** 2).sum(-1).mean()
+                opt.zero_grad()
+                loss.backward()
+                opt.step()
+                state = tuple(x.detach() for x in state)
+                total += float(loss.detach()) * z.shape[1]
+            print(f"horizon {horizon} epoch {epoch + 1}: loss {total / s.shape[1]:.4f} "
+                  f"({time.time() - t0:.0f} s)", flush=True)
+    model.eval()
+    if reset:  # windows of the fresh test split, each from the zero state
+        part = fresh.take("test")
+        n = len(part.sensors) // args.horizon * args.horizon
+        with torch.no_grad():
+            z, _ = model.encode(
+                streams(scale_sensors(part.sensors[:n], fresh.max_range), n // args.horizon),
+                None,
+                streams(scale_motors(part.motors[:n]), n // args.horizon),
+            )
+            got = r2(head(z), streams(displacements(part.poses[:n], args.horizon), n // args.horizon))
+        print(json.dumps({"sizes": sizes, "epochs": args.epochs, "horizon": args.horizon,
+                          "curriculum": args.curriculum, "target": args.target,
+                          "test_r2_along_across": got}))
+        return
+    run = Run(Path(args.train), model, {"data": {"world": db.meta["world"]["name"]}})
+    with torch.no_grad():
+        probes = probe_places(run, fresh)
+    print(json.dumps({"sizes": sizes, "epochs": args.epochs, "curriculum": args.curriculum,
+                      "lr": args.lr, "probes": probes}))
+
+
+if __name__ == "__main__":
+    main()
