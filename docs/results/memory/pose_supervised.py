@@ -56,23 +56,28 @@ def r2(pred: torch.Tensor, target: torch.Tensor) -> list[float]:
     return [round(float(v), 4) for v in 1 - sse / sst]
 
 
-def readings(part, max_range: float, compass: bool) -> np.ndarray:
-    """(n, 5) scaled readings, with (cos h, sin h) of the true heading beside them (n, 7) when
-    ``compass``: the memory then need not integrate the turns to integrate the path."""
+def readings(part, max_range: float, heading: str) -> np.ndarray:
+    """(n, 5) scaled readings, with (cos, sin) of a heading beside them (n, 7): ``compass``
+    the true one; ``odometry`` the turns of the commands summed from the part's start (the true
+    heading less the unknown start heading, to 1e-5: the commands alone give it). With either
+    the memory need not integrate the turns to integrate the path."""
     s = scale_sensors(part.sensors, max_range)
-    if not compass:
+    if heading == "none":
         return s
-    h = part.poses[:, 2].astype(np.float64)
+    if heading == "compass":
+        h = part.poses[:, 2].astype(np.float64)
+    else:  # the turn before step t is m_{t-1}'s, as the memory reads it
+        h = np.concatenate([[0.0], np.cumsum(part.motors[:-1, 1].astype(np.float64))])
     return np.concatenate([s, np.cos(h)[:, None], np.sin(h)[:, None]], 1).astype(np.float32)
 
 
-def compass_probes(model, fresh) -> dict:
-    """``probe_places``' probes of a memory that reads the compass (its inputs are not a
+def heading_probes(model, fresh, heading: str) -> dict:
+    """``probe_places``' probes of a memory that reads a heading (its inputs are not a
     database's readings, so ``probe_places`` cannot run it)."""
     fit, test = fresh.take("train"), fresh.take("test")
 
     def z_of(part, steps=None):
-        s = torch.from_numpy(readings(part, fresh.max_range, True)[:steps])
+        s = torch.from_numpy(readings(part, fresh.max_range, heading)[:steps])
         return run_model(model, s, torch.from_numpy(scale_motors(part.motors[:steps])))[1].numpy()
 
     z_fit, z = z_of(fit, PROBE_FIT_MAX), z_of(test)
@@ -102,14 +107,15 @@ def main() -> None:
     ap.add_argument("--lr", type=float, default=1e-3)
     ap.add_argument("--target", choices=("position", "displacement"), default="position",
                     help="displacement: from each window's start, the memory reset there")
-    ap.add_argument("--compass", action="store_true", help="the true heading as an input")
+    ap.add_argument("--heading", choices=("none", "compass", "odometry"), default="none",
+                    help="a heading as an input: the true one, or the commands' turns summed")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--set", nargs="*", default=[], help="ModelConfig sizes, e.g. lstm_size=64")
     args = ap.parse_args()
     torch.manual_seed(args.seed)
     torch.set_num_threads(1)
     sizes = {k: int(v) for k, v in (s.split("=") for s in args.set)}
-    n_sensors = 7 if args.compass else 5
+    n_sensors = 5 if args.heading == "none" else 7
     model = build_model(ModelConfig(kind=REC_SMA, n_sensors=n_sensors, **sizes), seed=args.seed)
     head = torch.nn.Linear(model.config.z_sensors, 2)
     params = [p for n, p in model.named_parameters() if n.startswith(("lstm", "sensor_"))]
@@ -122,7 +128,7 @@ def main() -> None:
         n = len(part.sensors)
         if reset:  # whole windows in every stream
             n = n // (args.streams * horizon) * args.streams * horizon
-        s = streams(readings(part, db.max_range, args.compass)[:n], args.streams)
+        s = streams(readings(part, db.max_range, args.heading)[:n], args.streams)
         m = streams(scale_motors(part.motors[:n]), args.streams)
         target = displacements(part.poses[:n], horizon) if reset else standard_position(part.poses)
         y = streams(target[:n], args.streams)
@@ -145,21 +151,25 @@ def main() -> None:
         n = len(part.sensors) // args.horizon * args.horizon
         with torch.no_grad():
             z, _ = model.encode(
-                streams(readings(part, fresh.max_range, args.compass)[:n], n // args.horizon),
+                streams(readings(part, fresh.max_range, args.heading)[:n], n // args.horizon),
                 None,
                 streams(scale_motors(part.motors[:n]), n // args.horizon),
             )
             got = r2(head(z), streams(displacements(part.poses[:n], args.horizon), n // args.horizon))
         print(json.dumps({"sizes": sizes, "epochs": args.epochs, "horizon": args.horizon,
                           "curriculum": args.curriculum, "target": args.target,
-                          "compass": args.compass,
+                          "heading": args.heading,
                           "test_r2_along_across": got}))
         return
     run = Run(Path(args.train), model, {"data": {"world": db.meta["world"]["name"]}})
     with torch.no_grad():
-        probes = compass_probes(model, fresh) if args.compass else probe_places(run, fresh)
+        probes = (
+            probe_places(run, fresh)
+            if args.heading == "none"
+            else heading_probes(model, fresh, args.heading)
+        )
     print(json.dumps({"sizes": sizes, "epochs": args.epochs, "curriculum": args.curriculum,
-                      "lr": args.lr, "compass": args.compass, "probes": probes}))
+                      "lr": args.lr, "heading": args.heading, "probes": probes}))
 
 
 if __name__ == "__main__":
