@@ -16,10 +16,11 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import time
 
 import torch
-from pose_supervised import heading_probes, readings, streams
+from pose_supervised import heading_probes, readings, streams, turned
 
 from sensorimotor.learn.config import TrainConfig
 from sensorimotor.learn.models import REC_SMA, ModelConfig, build_model
@@ -49,8 +50,11 @@ def main() -> None:
     target = streams(scale_sensors(part.sensors, db.max_range), n_streams)  # (B, T, 5)
     motors = streams(scale_motors(part.motors), n_streams)  # (B, T, 2)
     length = memory_in.shape[1]
+    draw = torch.Generator().manual_seed(args.seed)
     for epoch in range(args.epochs):
         t0, state, total, count = time.time(), None, 0.0, 0
+        if args.heading == "odometry":  # each stream's start heading drawn anew
+            memory_in = turned(memory_in, torch.rand(n_streams, generator=draw) * 2 * math.pi)
         for i in range(0, length - k, horizon):
             j = min(i + horizon, length - k)
             z, state = model.encode(memory_in[:, i:j], state, motors[:, i:j])

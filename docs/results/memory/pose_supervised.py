@@ -11,13 +11,16 @@ through 256 steps with the state carried, as Rec-SMA trains. It then scores z_s 
 issue's own probes (``analysis.analyze.probe_places``, on ``FRESH``: fitted on its training
 split, scored on its test split after 200 steps). Supervision is what the self-supervised
 model does not get: if even this memory stays far from the goals, its size or inputs are the
-limit; if it reaches them, the prediction loss is.
+limit; if it reaches them, the prediction loss is. ``--target displacement`` asks only for the
+path integrated over a window; ``--heading`` adds a heading to the memory's inputs (the true
+one, or the commands' turns summed, which the commands alone give).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import time
 from pathlib import Path
 
@@ -69,6 +72,14 @@ def readings(part, max_range: float, heading: str) -> np.ndarray:
     else:  # the turn before step t is m_{t-1}'s, as the memory reads it
         h = np.concatenate([[0.0], np.cumsum(part.motors[:-1, 1].astype(np.float64))])
     return np.concatenate([s, np.cos(h)[:, None], np.sin(h)[:, None]], 1).astype(np.float32)
+
+
+def turned(s: torch.Tensor, angle: torch.Tensor) -> torch.Tensor:
+    """Streams (B, T, 7) whose heading columns are turned by ``angle`` (B,): another unknown
+    start heading for each stream (the summed turns fix only the heading's changes)."""
+    c, n = torch.cos(angle)[:, None], torch.sin(angle)[:, None]
+    cos, sin = s[..., 5], s[..., 6]
+    return torch.cat([s[..., :5], (c * cos - n * sin)[..., None], (n * cos + c * sin)[..., None]], -1)
 
 
 def heading_probes(model, fresh, heading: str) -> dict:
@@ -123,6 +134,7 @@ def main() -> None:
     db, fresh = load_database(args.train), load_database(args.fresh)
     part = db.take("train")
     reset = args.target == "displacement"
+    draw = torch.Generator().manual_seed(args.seed)
     stages = [(h, args.stage_epochs) for h in args.curriculum] + [(args.horizon, args.epochs)]
     for horizon, epochs in stages:
         n = len(part.sensors)
@@ -134,6 +146,8 @@ def main() -> None:
         y = streams(target[:n], args.streams)
         for epoch in range(epochs):
             t0, state, total = time.time(), None, 0.0
+            if args.heading == "odometry":  # each stream's start heading drawn anew: it must
+                s = turned(s, torch.rand(len(s), generator=draw) * 2 * math.pi)  # be inferred
             for i in range(0, s.shape[1], horizon):
                 state = None if reset else state
                 z, state = model.encode(s[:, i : i + horizon], state, m[:, i : i + horizon])
