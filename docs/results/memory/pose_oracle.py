@@ -29,8 +29,9 @@ import numpy as np
 import torch
 
 from sensorimotor.learn.config import TrainConfig
+from sensorimotor.learn.evaluate import split_tensors
 from sensorimotor.learn.models import REC_SMA, ModelConfig, SensorimotorEncoder, mlp
-from sensorimotor.sim.database import load_database, scale_motors, scale_sensors
+from sensorimotor.sim.database import load_database
 
 SHOW = (1, 2, 4, 8, 16, 32)
 
@@ -41,16 +42,12 @@ def pose_features(poses: np.ndarray, size: float = 50.0) -> torch.Tensor:
     return torch.from_numpy(np.stack([x, y, np.cos(h), np.sin(h)], 1).astype(np.float32))
 
 
-def split(db, name: str):
-    part = db.take(name)
-    return (
-        pose_features(part.poses),
-        torch.from_numpy(scale_sensors(part.sensors, db.max_range)),
-        torch.from_numpy(scale_motors(part.motors)),
-    )
+def split(db, name: str) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Pose features, scaled readings and scaled commands of one split."""
+    return (pose_features(db.take(name).poses), *split_tensors(db, name))
 
 
-def windows(n: int, steps: int, starts: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+def windows(steps: int, starts: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """Index arrays of the commands m_t .. m_{t+K-1} and targets s_{t+1} .. s_{t+K}."""
     k = torch.arange(steps)
     return starts[:, None] + k, starts[:, None] + k + 1
@@ -63,7 +60,7 @@ def errors(g, model, data, steps: int, every: int = 1) -> torch.Tensor:
     total = torch.zeros(steps, dtype=torch.float64)
     with torch.no_grad():
         for chunk in starts.split(20_000):
-            m_idx, s_idx = windows(len(sensors), steps, chunk)
+            m_idx, s_idx = windows(steps, chunk)
             z = g(pose[chunk])[:, None]  # (B, 1, 10)
             pred = model.ahead(z, motors[m_idx], steps)[:, :, 0]  # (K, B, 5)
             target = sensors[s_idx].transpose(0, 1)  # (K, B, 5)
@@ -99,7 +96,7 @@ def main() -> None:
         t0 = time.time()
         order = all_starts[torch.randperm(len(all_starts))]
         for batch in order.split(args.batch):
-            m_idx, s_idx = windows(len(sensors), steps, batch)
+            m_idx, s_idx = windows(steps, batch)
             pred = model.ahead(g(pose[batch])[:, None], motors[m_idx], steps)[:, :, 0]
             loss = ((pred - sensors[s_idx].transpose(0, 1)) ** 2).sum(-1).mean()
             opt.zero_grad()
