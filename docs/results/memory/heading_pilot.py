@@ -34,6 +34,7 @@ def main() -> None:
     ap.add_argument("--heading", choices=("none", "compass", "odometry"), default="odometry")
     ap.add_argument("--epochs", type=int, default=30)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--probe-every", type=int, default=0, help="probe every N epochs too")
     args = ap.parse_args()
     torch.manual_seed(args.seed)
     torch.set_num_threads(1)
@@ -69,10 +70,20 @@ def main() -> None:
             total, count = total + float(loss.detach()) * (j - i), count + (j - i)
         print(f"epoch {epoch + 1}: open-loop loss {total / count:.4f} ({time.time() - t0:.0f} s)",
               flush=True)
+        if args.probe_every and (epoch + 1) % args.probe_every == 0 and epoch + 1 < args.epochs:
+            print(json.dumps({"epoch": epoch + 1, "probes": probe(model, fresh, args.heading)}),
+                  flush=True)
+    print(json.dumps({"heading": args.heading, "epochs": args.epochs,
+                      "probes": probe(model, fresh, args.heading)}))
+
+
+def probe(model, fresh, heading: str) -> dict:
+    """The issue's probes of z_s on ``fresh``, the model left in training mode after."""
     model.eval()
     with torch.no_grad():
-        probes = heading_probes(model, fresh, args.heading)
-    print(json.dumps({"heading": args.heading, "epochs": args.epochs, "probes": probes}))
+        probes = heading_probes(model, fresh, heading)
+    model.train()
+    return probes
 
 
 if __name__ == "__main__":
