@@ -1,4 +1,4 @@
-"""Rec-SMA, self-supervised, with and without the commands' summed turns as an input (a pilot).
+"""Rec-SMA, self-supervised, with a heading among its memory's inputs or without (a pilot).
 
     PYTHONPATH=src python docs/results/memory/heading_pilot.py TRAIN.npz FRESH.npz --heading odometry
 
@@ -8,8 +8,9 @@ commands give the heading up to the unknown start heading: the turns summed (``-
 odometry``). This pilot trains Rec-SMA as the kind trains (``SensorimotorEncoder.encode`` and
 ``ahead``: K = 32 from every 4th step, backpropagation through 256 steps, 4 streams, the state
 carried, Adam 1e-3) on the prediction loss alone, its memory reading that heading beside the
-readings or not (``--heading none``), and probes z_s with the issue's probes on ``FRESH``.
-Autograd, one seed, a fixed number of epochs: a pilot, not the kind's training.
+readings (``--heading compass``: the true heading) or not (``--heading none``), and probes z_s
+with the issue's probes on ``FRESH`` (every ``--probe-every`` epochs too). Autograd, one seed, a
+fixed number of epochs: a pilot, not the kind's training.
 """
 
 from __future__ import annotations
