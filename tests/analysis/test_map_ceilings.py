@@ -155,6 +155,15 @@ def test_on_a_lattice_database_the_planners_move_as_the_lattice_behaviour(monkey
     assert Moves("grid").lattice_command(3) == (0.0, math.pi / 2)
 
 
+def test_on_the_grid_the_true_pose_planner_turns_once_and_goes():
+    """The grid's turns move nothing: judged as the paper's moves are (the heading LOOK units
+    ahead), its planner turned left and right in place and missed 2 of these 12 goals."""
+    world = load_world("rooms1")
+    plans = ceilings.true_pose_planning(world, DEFAULT_LAYOUT, 0, 12, moves=Moves("grid"))
+    assert plans["success"] == 1.0
+    assert plans["median_steps"] < 80
+
+
 def _one_cell_map():
     """A cloned HMM of one cell, two clones, uniform transitions under every action."""
     from sensorimotor.analysis.map.chmm import CloneHMM, Transitions

@@ -1,0 +1,141 @@
+"""Why the map plans no better than a random walk in the grid regime, and which planner does.
+
+``fit DB OUT.npz``: the map of ``sensorimotor map raw --data DB --clusters 200 --clones 75
+--contexts 1`` (the same calls as ``mapping.map_files``), its arrays saved (no pickle).
+``plan DB MAP.npz --pairs N --pair-seed S [--jump J]``: the map's planner
+(``planning.planning``) on start/goal pairs drawn with seed S (choose on S = 1, report on S = 0,
+the pairs ``map`` itself plans), with the pseudocount's jumps made J dearer.
+``why DB MAP.npz``: the planner's distances to 5 goals against the jump's cost, and the map's
+active clones in each cell against the place-headings the cell holds.
+"""
+
+import argparse
+import math
+import time
+from types import SimpleNamespace
+
+import numpy as np
+from sklearn.metrics import pairwise_distances_argmin
+
+from sensorimotor.analysis.analyze import representation_of
+from sensorimotor.analysis.map.ceilings import true_pose_planning
+from sensorimotor.analysis.map.cells import N_ACTIONS
+from sensorimotor.analysis.map.chmm import CloneHMM, Transitions, fit_chmm
+from sensorimotor.analysis.map.localisation import localisation
+from sensorimotor.analysis.map.mapping import cell_steps
+from sensorimotor.analysis.map.planning import Moves, encoder_of, planning
+from sensorimotor.sim.database import load_database
+
+FIELDS = ("keys", "blocks", "rest", "targets")
+
+
+def fit(args):
+    db = load_database(args.db)
+    t0 = time.time()
+    train, test, kmeans = cell_steps("raw", db, args.clusters, 0)
+    model = fit_chmm(
+        train.cells, train.actions, args.clusters, args.clones, N_ACTIONS, 0, 100,
+        tol=1e-4, context=np.zeros(len(train.cells), dtype=np.int64), n_contexts=1,
+        progress=lambda stage, i, v: print(stage, i, f"{v:.4f}", flush=True),
+    )  # fmt: skip
+    loc, state_mean, occupancy = localisation(model, train, test, db.world)
+    print("fitted in", round(time.time() - t0), "s; balanced room", loc["room_accuracy"])
+    arrays = {f"T_{f}": getattr(model.T, f) for f in FIELDS}
+    arrays |= {"active": model.active, "counts": model.counts}
+    arrays |= {"centres": kmeans.cluster_centers_, "state_mean": state_mean}
+    arrays |= {"occupancy": occupancy, "shape": np.array([model.T.n_cells, model.T.n_actions])}
+    np.savez(args.out, **arrays)
+
+
+def load_map(path):
+    f = np.load(path, allow_pickle=False)
+    K, A = (int(x) for x in f["shape"])
+    T = Transitions(*(f[f"T_{x}"] for x in FIELDS), K, A)
+    model = CloneHMM(T, f["active"], f["counts"], {"em": [], "viterbi": []}, T)
+    return (
+        model,
+        SimpleNamespace(cluster_centers_=f["centres"]),
+        f["state_mean"],
+        f["occupancy"],
+    )
+
+
+def plan(args):
+    import sensorimotor.analysis.map.planning as P
+
+    real = P.reverse_graph
+    if args.jump:  # the pseudocount's jumps made dearer by args.jump (a fallback, not a path)
+
+        def dearer(model):
+            g = real(model).tocsr()
+            hub = model.n_states
+            g = g.tolil()
+            row = g.getrow(hub)  # reversed graph: row = the target, so hub's row = edges s -> hub
+            g[hub, row.indices] = row.data + args.jump
+            return g.tocsr()
+
+        P.reverse_graph = dearer
+    db = load_database(args.db)
+    model, kmeans, state_mean, occupancy = load_map(args.map)
+    t0 = time.time()
+    out, _ = planning(
+        db.world, db.layout, encoder_of("raw", db.max_range), kmeans, model, state_mean,
+        occupancy, args.pair_seed, args.pairs, moves=Moves(db.behaviour),
+        progress=lambda i, r: print(f"pair {i} success {r:.3f}", flush=True) if i % 10 == 0 else None,
+    )  # fmt: skip
+    n = args.pairs
+    top = true_pose_planning(db.world, db.layout, args.pair_seed, n, moves=Moves(db.behaviour))
+    out["success"]["true pose"] = top["success"]
+    se = {k: math.sqrt(v * (1 - v) / n) for k, v in out["success"].items()}
+    print("jump +", args.jump, "pairs", n, "seed", args.pair_seed, out["success"], "SE", se,
+          "median steps", out["median_steps"], round(time.time() - t0), "s")  # fmt: skip
+
+
+def why(args):
+    import sensorimotor.analysis.map.planning as P
+
+    db = load_database(args.db)
+    model, kmeans, state_mean, occupancy = load_map(args.map)
+    graph, act = P.reverse_graph(model), model.active
+    q = [0, 0.1, 0.5, 0.9, 1]
+    jump = 1 - np.log(model.T.rest.max(axis=0)[act])
+    print("active states", act.sum(), "jump cost quantiles", np.quantile(jump, q).round(2))
+    for goal_xy, _, _ in P.start_goal_pairs(db.world, 1, 5):
+        D = P.goal_distances(model, P.goal_states(model, state_mean, occupancy, goal_xy), graph)
+        d, true = D[act], np.hypot(*(state_mean[act] - goal_xy).T)
+        ok = np.isfinite(d)
+        print("distance to a goal: quantiles", np.quantile(d[ok], q).round(1),
+              "correlation with the straight line", np.corrcoef(d[ok], true[ok])[0, 1].round(2))  # fmt: skip
+    part = db.take("train")
+    z = representation_of("raw", db, "train")
+    cells = pairwise_distances_argmin(z, kmeans.cluster_centers_)  # the nearest centre
+    poses = np.asarray(part.poses, dtype=np.float64)  # on start + 0.9 Z^2, 4 headings
+    key = np.round(poses / np.array([0.09, 0.09, np.pi / 2])).astype(np.int64)
+    place_heading = np.unique(key[:, 0] * 10**10 + key[:, 1] * 10 + key[:, 2] % 4,
+                              return_inverse=True)[1]  # fmt: skip
+    K, C = model.n_cells, model.n_clones
+    held = np.array([len(np.unique(place_heading[cells == k])) for k in range(K)])
+    clones = act.reshape(K, C).sum(axis=1)
+    print("place-headings", place_heading.max() + 1, "per cell: quantiles", np.quantile(held, q))
+    print("active clones per cell: quantiles", np.quantile(clones, q), "cells with fewer clones "
+          "than place-headings", (clones < held).sum(), "of", K)  # fmt: skip
+
+
+p = argparse.ArgumentParser()
+sub = p.add_subparsers(dest="cmd", required=True)
+f_ = sub.add_parser("fit")
+f_.add_argument("db")
+f_.add_argument("out")
+f_.add_argument("--clusters", type=int, default=200)
+f_.add_argument("--clones", type=int, default=75)
+p_ = sub.add_parser("plan")
+p_.add_argument("db")
+p_.add_argument("map")
+p_.add_argument("--pairs", type=int, default=50)
+p_.add_argument("--pair-seed", type=int, default=1)
+p_.add_argument("--jump", type=float, default=0.0)
+w_ = sub.add_parser("why")
+w_.add_argument("db")
+w_.add_argument("map")
+a = p.parse_args()
+{"fit": fit, "plan": plan, "why": why}[a.cmd](a)
