@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from sklearn.metrics import adjusted_rand_score
 
 import reference_chmm as reference
 from conftest import assert_one_line_error
@@ -33,7 +34,12 @@ from sensorimotor.analysis.map.chmm import (
     fit_chmm,
     log_likelihood,
 )
-from sensorimotor.analysis.map.context import N_CONTEXTS, decayed_history, slow_context
+from sensorimotor.analysis.map.context import (
+    N_CONTEXTS,
+    decayed_history,
+    fine_clones,
+    slow_context,
+)
 from sensorimotor.analysis.map.graphs import communities
 from sensorimotor.analysis.map.localisation import localisation
 from sensorimotor.analysis.map.mapping import cell_steps, map_files
@@ -110,6 +116,36 @@ def test_the_map_recovers_an_aliased_ring():
     assert base["markov"] > truth + 0.4  # the observations alone do not say where one is
     assert nats / np.log(2) < truth + 0.1
     assert 12 <= model.active.sum() <= 18  # about one active state per place
+
+
+def test_the_fine_start_splits_a_cell_by_its_representations():
+    """``context.fine_clones``: within each cell, one clone per cluster of the representation,
+    at most ``clones`` and at most the cell's distinct representations."""
+    rng = np.random.default_rng(0)
+    points = np.array([[0.0, 0.0], [5.0, 0.0], [0.0, 5.0]])
+    which = rng.integers(0, 3, 300)
+    z = np.concatenate([points[which], np.full((100, 2), 9.0)])  # cell 0: three places; 1: one
+    cells = np.r_[np.zeros(300, dtype=np.int64), np.ones(100, dtype=np.int64)]
+    fine = fine_clones(z, cells, 4)
+    assert adjusted_rand_score(which, fine[:300]) == 1.0
+    assert len(np.unique(fine[:300])) == 3
+    assert (fine[300:] == 0).all()
+    assert len(np.unique(fine_clones(z, cells, 2)[:300])) == 2  # at most ``clones``
+
+
+def test_em_starts_from_a_given_path_of_clones():
+    """``start``: EM's first model is the one counted along that path. From the ring's true
+    places (clone = the place's rank among its cell's places) it already predicts near the
+    true entropy rate at its first iteration, where the random start is far from it."""
+    obs, actions, places = ring_walk(6_000)
+    truth = 2 / 3 * -(SLIP * np.log(SLIP) + (1 - SLIP) * np.log(1 - SLIP))  # nats
+    rank = np.array([(RING[:p] == RING[p]).sum() for p in range(len(RING))])  # 0..3
+    given = fit_chmm(obs, actions, 3, 6, 3, seed=0, em_iters=1, start=rank[places])
+    drawn = fit_chmm(obs, actions, 3, 6, 3, seed=0, em_iters=1)
+    assert -given.history["em"][0] < truth + 0.01
+    assert -drawn.history["em"][0] > truth + 0.3
+    with pytest.raises(ValueError, match="start must be"):
+        fit_chmm(obs, actions, 3, 6, 3, start=np.full(len(obs), 6))
 
 
 def test_the_clone_kernels_match_a_plain_hmm_over_every_state():
@@ -226,10 +262,7 @@ def test_the_context_split_gives_a_one_clone_map_the_room():
     assert plain_rooms["map"] == pytest.approx(plain_rooms["cells"])
     assert rooms["cells"] < 0.65
     assert rooms["map"] > 0.85
-    bits = [
-        -log_likelihood(m.T, test.cells, test.actions)[1:].mean()
-        for m in (plain, split)
-    ]
+    bits = [-log_likelihood(m.T, test.cells, test.actions)[1:].mean() for m in (plain, split)]
     assert bits[1] < bits[0] - 0.005  # nats: knowing the room predicts the next cell (at most 0.03)
     with pytest.raises(ValueError, match="context"):
         fit_chmm(train.cells, train.actions, 3, 1, 1, context=context[:-1], n_contexts=2)
@@ -359,10 +392,19 @@ def test_cli_map_writes_strict_json_graphml_and_figures(cli, rooms1_db_path, tmp
     from sensorimotor.cli.app import N_CONTEXTS as CLI_CONTEXTS
 
     assert CLI_CONTEXTS == N_CONTEXTS  # the CLI's copies, kept to refuse before imports
-    assert (MAX_CLUSTERS, MAX_CLONES, MAX_CONTEXTS) == (mapping.MAX_CLUSTERS, mapping.MAX_CLONES, mapping.MAX_CONTEXTS)
+    assert (MAX_CLUSTERS, MAX_CLONES, MAX_CONTEXTS) == (
+        mapping.MAX_CLUSTERS,
+        mapping.MAX_CLONES,
+        mapping.MAX_CONTEXTS,
+    )
     defaults = inspect.signature(map_cmd).parameters
     assert (defaults["em_iters"].default, defaults["tol"].default) == (chmm.EM_ITERS, chmm.TOL)
     assert (m["settings"]["em_iters"], m["settings"]["em_tol"]) == (chmm.EM_ITERS, chmm.TOL)
+    assert (defaults["pseudocount"].default, defaults["start"].default) == (
+        chmm.PSEUDOCOUNT,
+        mapping.STARTS[0],
+    )
+    assert (m["settings"]["pseudocount"], m["settings"]["start"]) == (chmm.PSEUDOCOUNT, "random")
     assert 1 <= m["states"]["active"] <= 6 * 3 * N_CONTEXTS
     import networkx as nx
 
@@ -378,6 +420,10 @@ def test_cli_map_bad_input_is_one_line_and_writes_nothing(cli, rooms1_db_path, t
     out = tmp_path / "o"
     proc = cli("map", "raw", "--data", rooms1_db_path, "--out", out, "--clusters", "1")
     assert_one_line_error(proc, "--clusters")
+    proc = cli("map", "raw", "--data", rooms1_db_path, "--out", out, "--start", "best")
+    assert_one_line_error(proc, "--start", "random, fine")
+    proc = cli("map", "raw", "--data", rooms1_db_path, "--out", out, "--pseudocount", "0")
+    assert_one_line_error(proc, "--pseudocount")
     short = tmp_path / "short.npz"
     save_database(generate(load_world("rooms1"), 150, seed=0), short)
     proc = cli("map", "raw", "--data", short, "--out", out)

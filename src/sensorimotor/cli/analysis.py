@@ -112,13 +112,21 @@ def map_cmd(
         float,
         typer.Option(min=0.0, max=1.0, help="EM stops when an iteration gains less (nats/step)."),
     ] = 1e-4,
+    start: Annotated[
+        str,
+        typer.Option(help="EM's start: random, or fine (clones = clusters within each cell)."),
+    ] = "random",
+    pseudocount: Annotated[
+        float,
+        typer.Option(min=1e-9, max=1.0, help="EM's pseudocount on every transition (S a row)."),
+    ] = 1e-3,
 ) -> None:
     """Learn a map from a representation's cells: the cell graph and a cloned HMM (EM, Viterbi,
     each clone split by the slow context), scored on the test split (bits/step, localisation,
     rooms); see analysis/map/mapping.py."""
     from sensorimotor.analysis.map.mapping import check_settings, map_files, summary_lines
 
-    check_settings(clusters, clones, contexts)
+    check_settings(clusters, clones, contexts, start)
     with progress(f"mapping {run} on {data}") as update:
 
         def note(stage: str, i: int, number: float) -> None:
@@ -134,6 +142,8 @@ def map_cmd(
             progress=note,
             contexts=contexts,
             tol=tol,
+            start=start,
+            pseudocount=pseudocount,
         )
     print("\n".join(summary_lines(result.metrics)))
     err_console.print("wrote " + ", ".join(str(p) for p in result.files), soft_wrap=True)

@@ -33,10 +33,15 @@ def fit(args):
     db = load_database(args.db)
     t0 = time.time()
     train, test, kmeans = cell_steps("raw", db, args.clusters, 0)
+    start = (
+        refined(representation_of("raw", db, "train"), train.cells, args.clones)
+        if args.refine
+        else None
+    )
     model = fit_chmm(
         train.cells, train.actions, args.clusters, args.clones, N_ACTIONS, 0, 100,
-        tol=1e-4, context=np.zeros(len(train.cells), dtype=np.int64), n_contexts=1,
-        progress=lambda stage, i, v: print(stage, i, f"{v:.4f}", flush=True),
+        tol=1e-4, pseudocount=args.pseudocount, context=np.zeros(len(train.cells), dtype=np.int64), n_contexts=1,
+        progress=lambda stage, i, v: print(stage, i, f"{v:.4f}", flush=True), start=start,
     )  # fmt: skip
     loc, state_mean, occupancy = localisation(model, train, test, db.world)
     print("fitted in", round(time.time() - t0), "s; balanced room", loc["room_accuracy"])
@@ -45,6 +50,20 @@ def fit(args):
     arrays |= {"centres": kmeans.cluster_centers_, "state_mean": state_mean}
     arrays |= {"occupancy": occupancy, "shape": np.array([model.T.n_cells, model.T.n_actions])}
     np.savez(args.out, **arrays)
+
+
+def refined(z, cells, clones):
+    """(n,) each step's clone for the start: its k-means cluster (at most ``clones``) among the
+    representations of its cell, the finer quantisation of what the cell lumps together."""
+    from sklearn.cluster import KMeans
+
+    out = np.zeros(len(cells), dtype=np.int64)
+    for c in np.unique(cells):
+        mine = np.flatnonzero(cells == c)
+        k = min(clones, len(np.unique(z[mine], axis=0)))
+        if k > 1:
+            out[mine] = KMeans(k, n_init=1, random_state=0).fit_predict(z[mine])
+    return out
 
 
 def load_map(path):
@@ -128,6 +147,8 @@ f_.add_argument("db")
 f_.add_argument("out")
 f_.add_argument("--clusters", type=int, default=200)
 f_.add_argument("--clones", type=int, default=75)
+f_.add_argument("--refine", action="store_true", help="start EM from the refined clones")
+f_.add_argument("--pseudocount", type=float, default=1e-3)
 p_ = sub.add_parser("plan")
 p_.add_argument("db")
 p_.add_argument("map")

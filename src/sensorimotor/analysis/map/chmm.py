@@ -420,11 +420,13 @@ def fit_chmm(
     context: np.ndarray | None = None,
     n_contexts: int = 1,
     progress=None,
+    start: np.ndarray | None = None,
 ) -> CloneHMM:
     """Fit a cloned HMM to one training sequence: EM, then Viterbi training, the split by
     ``context`` ((n,) labels in [0, n_contexts), ``context.slow_context``) if more than one, and
     pruning (see the module docstring). ``progress(stage, iteration, loglik_per_step)`` after
-    each iteration."""
+    each iteration. ``start`` ((n,) clones in [0, n_clones)): EM starts from the transitions
+    counted along that path (plus the pseudocount) instead of the random start."""
     if n_clones < 1:
         raise ValueError(f"the number of clones must be at least 1, got {n_clones}")
     cells, actions = _sequence(cells, actions, n_cells, n_actions)
@@ -437,7 +439,13 @@ def fit_chmm(
     K, A, C, n = n_cells, n_actions, n_clones, len(cells)
     keys, ids = np.unique(_triple_keys(cells, actions, K, A), return_inverse=True)
     ids = ids.astype(np.int64)
-    T = _random_start(rng, keys, K, C, A)
+    if start is None:
+        T = _random_start(rng, keys, K, C, A)
+    else:
+        start = np.asarray(start, dtype=np.int64)
+        if start.shape != cells.shape or start.min() < 0 or start.max() >= C:
+            raise ValueError(f"start must be {cells.shape} clones in [0, {C})")
+        T = _normalise(keys, _path_counts(cells * C + start, ids, C, len(keys)), K, A, pseudocount)
     alpha = np.empty((n, C))
     history: dict[str, list[float]] = {"em": [], "viterbi": []}
     previous = -np.inf

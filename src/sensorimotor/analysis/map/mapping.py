@@ -57,7 +57,13 @@ from sensorimotor.analysis.map.chmm import (
     fit_chmm,
     log_likelihood,
 )
-from sensorimotor.analysis.map.context import CONTEXT_TAU, MAX_CONTEXTS, N_CONTEXTS, slow_context
+from sensorimotor.analysis.map.context import (
+    CONTEXT_TAU,
+    MAX_CONTEXTS,
+    N_CONTEXTS,
+    fine_clones,
+    slow_context,
+)
 from sensorimotor.analysis.map.graphs import (
     best_states,
     map_graphs,
@@ -83,6 +89,7 @@ N_CLONES = 20  # clones per cell (the issue's 20-cell, 20-clone map)
 MAX_CLUSTERS = 200
 MAX_CLONES = 100
 MAX_STATES = 20_000  # K C N: the random start draws A S^2 numbers (2e9, about 10 s, here)
+STARTS = ("random", "fine")  # where EM starts: chmm's random T, or context.fine_clones
 OUTPUTS = (
     *("map.json", "map.graphml", "cell_graph.graphml"),
     *("place_fields.png", "map_graph.png", "plans.png"),
@@ -101,9 +108,13 @@ def _bounding_box(db, train: Steps, test: Steps) -> tuple[World, Steps, Steps]:
     return box, moved[0], moved[1]
 
 
-def check_settings(k: int, clones: int, contexts: int = N_CONTEXTS) -> None:
-    """InputError unless 2 <= K <= MAX_CLUSTERS, 1 <= C <= MAX_CLONES, 1 <= N <= MAX_CONTEXTS
-    and K C N <= MAX_STATES."""
+def check_settings(
+    k: int, clones: int, contexts: int = N_CONTEXTS, start: str = STARTS[0]
+) -> None:
+    """InputError unless 2 <= K <= MAX_CLUSTERS, 1 <= C <= MAX_CLONES, 1 <= N <= MAX_CONTEXTS,
+    K C N <= MAX_STATES and ``start`` is one of STARTS."""
+    if start not in STARTS:
+        raise InputError(f"--start must be one of {', '.join(STARTS)}, got {start!r}")
     if not 2 <= k <= MAX_CLUSTERS:
         raise InputError(f"--clusters must lie in [2, {MAX_CLUSTERS}], got {k}")
     if not 1 <= clones <= MAX_CLONES:
@@ -198,20 +209,28 @@ def map_files(
     progress=None,
     contexts: int = N_CONTEXTS,
     tol: float = TOL,
+    start: str = "random",
+    pseudocount: float = PSEUDOCOUNT,
 ) -> MapResult:
     """Build the map of ``run``'s representation (``"raw"`` or a run folder) of ``data`` and
     write ``map.json``, the GraphML files and the figures into ``out`` (module docstring).
     ``progress(stage, i, number)``: after each EM or Viterbi iteration (its log-likelihood per
-    step) and each planning pair (the map's success so far)."""
+    step) and each planning pair (the map's success so far). ``start``: ``STARTS``;
+    ``pseudocount``: EM's, added to every transition count."""
     from sensorimotor.analysis.map.plots import plot_map_graph, plot_place_fields, plot_plans
     from sensorimotor.sim.plots import save_figure
 
-    check_settings(clusters, clones, contexts)
+    check_settings(clusters, clones, contexts, start)
     nx = networkx_or_refuse()
     if not 0 <= pairs <= MAX_PAIRS:  # before the inputs are read
         raise InputError(f"--pairs must be from 0 to {MAX_PAIRS:,}, got {pairs}")
+    if not 0.0 < pseudocount <= 1.0:
+        raise InputError(f"--pseudocount must lie in (0, 1], got {pseudocount}")
     run, db, fit_db, out = load_inputs(run, data, fit_data, out, OUTPUTS)
     train, test, kmeans = cell_steps(run, db, clusters, seed, fit_db)
+    first = None
+    if start == "fine":
+        first = fine_clones(representation_of(run, db, "train"), train.cells, clones, seed)
     if db.has_walls:
         world = db.world
     else:  # a recording: positions within the path's bounding box, no rooms, no planning
@@ -222,9 +241,11 @@ def map_files(
     model = fit_chmm(
         *(train.cells, train.actions, clusters, clones, N_ACTIONS, seed, em_iters),
         tol=tol,
+        pseudocount=pseudocount,
         context=context,
         n_contexts=contexts,
         progress=progress,
+        start=first,
     )
     val = split_steps(db, kmeans, representation_of(run, db, "val"), "val")
     bits = baseline_bits(train.cells, train.actions, test.cells, test.actions, clusters)
@@ -258,7 +279,8 @@ def map_files(
             "seed": seed,
             "em_iters": em_iters,
             "em_tol": tol,
-            "pseudocount": PSEUDOCOUNT,
+            "pseudocount": pseudocount,
+            "start": start,
             "markov_smoothing": SMOOTHING,
             "grid": GRID,
         },
