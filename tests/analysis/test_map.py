@@ -16,6 +16,7 @@ import reference_chmm as reference
 from conftest import assert_one_line_error
 from sensorimotor.analysis.analyze import representation_of
 from sensorimotor.analysis.clusters import assign_clusters, fit_kmeans
+from sensorimotor.analysis.map import planning
 from sensorimotor.analysis.map.cells import (
     ACTION_NAMES,
     Steps,
@@ -290,6 +291,25 @@ def test_goal_distances_follow_the_map_to_the_goal():
     d = goal_distances(model, np.array([3]))
     assert d[:4].tolist() == pytest.approx([3, 2, 1, 0])
     assert np.isinf(d[4])
+
+
+def test_on_a_lattice_map_the_plan_follows_the_paths_the_map_took():
+    """``own_paths``: an entry the Viterbi path never took (here 0 -> 3, likely but uncounted)
+    is no edge, and the pseudocount's jumps cost FALLBACK more, so the plan follows 0 -> 1 -> 2
+    -> 3; the default graph takes the likely shortcut."""
+    T = np.full((1, 4, 4), 1e-3)
+    T[0, [0, 1, 2, 3], [1, 2, 3, 0]] = 0.6
+    T[0, 0, 3] = 0.35
+    T /= T.sum(axis=2, keepdims=True)
+    blocked = Transitions.from_dense(T, 1)
+    counts = np.zeros_like(blocked.blocks)  # (16, 1, 1): block b is (cell b // 4, cell b % 4)
+    counts[[1, 6, 11, 12]] = 5.0
+    model = CloneHMM(blocked, np.ones(4, dtype=bool), counts, {}, blocked)
+    assert goal_distances(model, np.array([3]))[0] < 3  # the shortcut: one step of cost ~2
+    own = planning.reverse_graph(model, own_paths=True)
+    d = goal_distances(model, np.array([3]), own)
+    assert d[0] == pytest.approx(sum(1 - np.log(T[0, i, i + 1]) for i in range(3)))
+    assert own[:4, 4].toarray() == pytest.approx(1 + planning.FALLBACK)  # landing from the hub
 
 
 def test_a_map_whose_blocks_would_not_fit_is_refused_before_it_is_fitted():

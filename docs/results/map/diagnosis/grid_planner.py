@@ -1,7 +1,8 @@
 """Why the map plans no better than a random walk in the grid regime, and which planner does.
 
-``fit DB OUT.npz``: the map of ``sensorimotor map raw --data DB --clusters 200 --clones 75
---contexts 1`` (the same calls as ``mapping.map_files``), its arrays saved (no pickle).
+``fit DB OUT.npz [--fine] [--pseudocount P]``: the map of ``sensorimotor map raw --data DB
+--clusters 200 --clones 75 --contexts 1 [--start fine] [--pseudocount P]`` (the same calls as
+``mapping.map_files``), its arrays saved (no pickle).
 ``plan DB MAP.npz --pairs N --pair-seed S [--jump J]``: the map's planner
 (``planning.planning``) on start/goal pairs drawn with seed S (choose on S = 1, report on S = 0,
 the pairs ``map`` itself plans), with the pseudocount's jumps made J dearer.
@@ -12,6 +13,7 @@ active clones in each cell against the place-headings the cell holds.
 import argparse
 import math
 import time
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -21,6 +23,7 @@ from sensorimotor.analysis.analyze import representation_of
 from sensorimotor.analysis.map.ceilings import true_pose_planning
 from sensorimotor.analysis.map.cells import N_ACTIONS
 from sensorimotor.analysis.map.chmm import CloneHMM, Transitions, fit_chmm
+from sensorimotor.analysis.map.context import CONTEXT_TAU, fine_clones, slow_context
 from sensorimotor.analysis.map.localisation import localisation
 from sensorimotor.analysis.map.mapping import cell_steps
 from sensorimotor.analysis.map.planning import Moves, encoder_of, planning
@@ -33,14 +36,12 @@ def fit(args):
     db = load_database(args.db)
     t0 = time.time()
     train, test, kmeans = cell_steps("raw", db, args.clusters, 0)
-    start = (
-        refined(representation_of("raw", db, "train"), train.cells, args.clones)
-        if args.refine
-        else None
-    )
+    z = representation_of("raw", db, "train")
+    start = fine_clones(z, train.cells, args.clones) if args.fine else None
     model = fit_chmm(
         train.cells, train.actions, args.clusters, args.clones, N_ACTIONS, 0, 100,
-        tol=1e-4, pseudocount=args.pseudocount, context=np.zeros(len(train.cells), dtype=np.int64), n_contexts=1,
+        tol=1e-4, pseudocount=args.pseudocount, n_contexts=args.contexts,
+        context=slow_context(train.cells, args.clusters, args.contexts, CONTEXT_TAU, 0),
         progress=lambda stage, i, v: print(stage, i, f"{v:.4f}", flush=True), start=start,
     )  # fmt: skip
     loc, state_mean, occupancy = localisation(model, train, test, db.world)
@@ -50,20 +51,6 @@ def fit(args):
     arrays |= {"centres": kmeans.cluster_centers_, "state_mean": state_mean}
     arrays |= {"occupancy": occupancy, "shape": np.array([model.T.n_cells, model.T.n_actions])}
     np.savez(args.out, **arrays)
-
-
-def refined(z, cells, clones):
-    """(n,) each step's clone for the start: its k-means cluster (at most ``clones``) among the
-    representations of its cell, the finer quantisation of what the cell lumps together."""
-    from sklearn.cluster import KMeans
-
-    out = np.zeros(len(cells), dtype=np.int64)
-    for c in np.unique(cells):
-        mine = np.flatnonzero(cells == c)
-        k = min(clones, len(np.unique(z[mine], axis=0)))
-        if k > 1:
-            out[mine] = KMeans(k, n_init=1, random_state=0).fit_predict(z[mine])
-    return out
 
 
 def load_map(path):
@@ -83,9 +70,12 @@ def plan(args):
     import sensorimotor.analysis.map.planning as P
 
     real = P.reverse_graph
-    if args.jump:  # the pseudocount's jumps made dearer by args.jump (a fallback, not a path)
+    if args.jump or args.counted:  # jumps dearer by args.jump; edges the path took, if counted
 
         def dearer(model):
+            if args.counted:  # the pseudocount's entries within the blocks are no edges
+                blocks = np.where(model.counts > 0, model.T.blocks, 0.0)
+                model = replace(model, T=replace(model.T, blocks=blocks))
             g = real(model).tocsr()
             hub = model.n_states
             g = g.tolil()
@@ -100,7 +90,7 @@ def plan(args):
     out, _ = planning(
         db.world, db.layout, encoder_of("raw", db.max_range), kmeans, model, state_mean,
         occupancy, args.pair_seed, args.pairs, moves=Moves(db.behaviour),
-        progress=lambda i, r: print(f"pair {i} success {r:.3f}", flush=True) if i % 10 == 0 else None,
+        progress=lambda i, r: print(f"pair {i}: {r:.3f}", flush=True) if i % 10 == 0 else None,
     )  # fmt: skip
     n = args.pairs
     top = true_pose_planning(db.world, db.layout, args.pair_seed, n, moves=Moves(db.behaviour))
@@ -123,8 +113,9 @@ def why(args):
         D = P.goal_distances(model, P.goal_states(model, state_mean, occupancy, goal_xy), graph)
         d, true = D[act], np.hypot(*(state_mean[act] - goal_xy).T)
         ok = np.isfinite(d)
+        r = np.corrcoef(d[ok], true[ok])[0, 1]
         print("distance to a goal: quantiles", np.quantile(d[ok], q).round(1),
-              "correlation with the straight line", np.corrcoef(d[ok], true[ok])[0, 1].round(2))  # fmt: skip
+              "correlation with the straight line", r.round(2))  # fmt: skip
     part = db.take("train")
     z = representation_of("raw", db, "train")
     cells = pairwise_distances_argmin(z, kmeans.cluster_centers_)  # the nearest centre
@@ -147,14 +138,16 @@ f_.add_argument("db")
 f_.add_argument("out")
 f_.add_argument("--clusters", type=int, default=200)
 f_.add_argument("--clones", type=int, default=75)
-f_.add_argument("--refine", action="store_true", help="start EM from the refined clones")
+f_.add_argument("--fine", action="store_true", help="EM from context.fine_clones")
 f_.add_argument("--pseudocount", type=float, default=1e-3)
+f_.add_argument("--contexts", type=int, default=1)
 p_ = sub.add_parser("plan")
 p_.add_argument("db")
 p_.add_argument("map")
 p_.add_argument("--pairs", type=int, default=50)
 p_.add_argument("--pair-seed", type=int, default=1)
 p_.add_argument("--jump", type=float, default=0.0)
+p_.add_argument("--counted", action="store_true", help="edges: the Viterbi path's only")
 w_ = sub.add_parser("why")
 w_.add_argument("db")
 w_.add_argument("map")

@@ -46,6 +46,7 @@ from sensorimotor.analysis.map.planning import (
     MOVING,
     PAPER_MOVES,
     Moves,
+    reflex_reading,
     start_goal_pairs,
 )
 from sensorimotor.sim.behaviours import LATTICE_STEP
@@ -356,9 +357,9 @@ def true_pose_episode(
             return t
         if t == budget:
             return None
-        readings = read_sensors(world, np.array([x, y, heading]), layout)[0]
-        if readings.min() < TURN_THRESHOLD:
-            d, r = moves.walk(readings.min(), rng)
+        nearest = reflex_reading(world, np.array([x, y, heading]), layout)
+        if nearest < TURN_THRESHOLD:
+            d, r = moves.walk(nearest, rng)
         elif moves.turn:
             d, r = moves.command(_lattice_action(far, shape, x, y, heading, moves.turn, rng), rng)
         else:
