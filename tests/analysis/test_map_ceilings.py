@@ -164,6 +164,20 @@ def test_on_the_grid_the_true_pose_planner_turns_once_and_goes():
     assert plans["median_steps"] < 80
 
 
+def test_the_reflex_reads_the_paper_rays_whatever_rays_the_database_records():
+    """The behaviour that recorded a database turned on the paper's five forward rays; with 16
+    rays over a full turn, a wall 0.5 behind the robot is seen but does not turn it."""
+    from sensorimotor.sim.core import read_sensors, spread_layout
+
+    world = load_world("square")
+    full = spread_layout(16, 2 * math.pi - 1e-3, 50.0)
+    pose = np.array([0.5, 25.0, 0.0])  # facing east, the west wall behind
+    assert read_sensors(world, pose, full)[0].min() < 1.0
+    assert planning.reflex_reading(world, pose, full) > 1.0
+    paper = read_sensors(world, pose, DEFAULT_LAYOUT)[0]
+    assert planning.reflex_reading(world, pose, DEFAULT_LAYOUT, paper) == paper.min()
+
+
 def _one_cell_map():
     """A cloned HMM of one cell, two clones, uniform transitions under every action."""
     from sensorimotor.analysis.map.chmm import CloneHMM, Transitions
