@@ -89,7 +89,7 @@ def map_cmd(
         int, typer.Option(min=2, max=MAX_CLUSTERS, help="Cells: k of k-means.")
     ] = 20,
     clones: Annotated[
-        int, typer.Option(min=1, max=MAX_CLONES, help="Clones per cell (K C N <= 20000).")
+        int, typer.Option(min=1, max=MAX_CLONES, help="Clones per cell (K C N <= 40000).")
     ] = 20,
     contexts: Annotated[
         int,

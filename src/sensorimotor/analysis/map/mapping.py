@@ -87,8 +87,9 @@ from sensorimotor.version import __version__
 
 N_CLONES = 20  # clones per cell (the issue's 20-cell, 20-clone map)
 MAX_CLUSTERS = 200
-MAX_CLONES = 100
-MAX_STATES = 20_000  # K C N: the random start draws A S^2 numbers (2e9, about 10 s, here)
+MAX_CLONES = 200  # the grid's cells hold up to 155 place-headings each (docs/results/map/grid)
+MAX_STATES = 40_000  # K C N: the random start draws A S^2 numbers (6.4e9, about 40 s, here);
+# the blocks' memory is bounded apart (chmm.MAX_BLOCK_BYTES)
 STARTS = ("random", "fine")  # where EM starts: chmm's random T, or context.fine_clones
 OUTPUTS = (
     *("map.json", "map.graphml", "cell_graph.graphml"),
