@@ -467,7 +467,7 @@ def test_map_refuses_bad_settings_and_other_layouts(rooms1_db_path, tmp_path):
     with pytest.raises(InputError, match="--clones"):
         map_files("raw", rooms1_db_path, tmp_path / "o", clones=0)
     with pytest.raises(InputError, match="states"):
-        map_files("raw", rooms1_db_path, tmp_path / "o", clusters=200, clones=51, contexts=2)
+        map_files("raw", rooms1_db_path, tmp_path / "o", clusters=200, clones=101, contexts=2)
     with pytest.raises(InputError, match="--contexts"):
         map_files("raw", rooms1_db_path, tmp_path / "o", contexts=0)
     other = tmp_path / "other.npz"
