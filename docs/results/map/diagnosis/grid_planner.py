@@ -1,11 +1,14 @@
 """Why the map plans no better than a random walk in the grid regime, and which planner does.
 
-``fit DB OUT.npz [--fine] [--pseudocount P]``: the map of ``sensorimotor map raw --data DB
---clusters 200 --clones 75 --contexts 1 [--start fine] [--pseudocount P]`` (the same calls as
-``mapping.map_files``), its arrays saved (no pickle).
-``plan DB MAP.npz --pairs N --pair-seed S [--jump J]``: the map's planner
-(``planning.planning``) on start/goal pairs drawn with seed S (choose on S = 1, report on S = 0,
-the pairs ``map`` itself plans), with the pseudocount's jumps made J dearer.
+``fit DB OUT.npz [--clusters K] [--clones C] [--fine] [--pseudocount P] [--contexts N]``: the
+map of ``sensorimotor map raw --data DB --clusters K --clones C --contexts N [--start fine]
+[--pseudocount P]`` (the same calls as ``mapping.map_files``; K 200, C 75, N 1 by default),
+its arrays saved (no pickle).
+``plan DB MAP.npz --pairs N --pair-seed S``: the map's planner (``planning.planning``) and the
+true-pose ceiling on start/goal pairs drawn with seed S (choose on S = 1, report on S = 0, the
+pairs ``map`` itself plans). The rows of docs/results/map/grid that made the pseudocount's
+jumps dearer or kept the counted edges only ran with the graph patched here; the package's
+planner does both on a lattice map now (``planning.reverse_graph(own_paths=True)``).
 ``why DB MAP.npz``: the planner's distances to 5 goals against the jump's cost, and the map's
 active clones in each cell against the place-headings the cell holds.
 """
@@ -13,7 +16,6 @@ active clones in each cell against the place-headings the cell holds.
 import argparse
 import math
 import time
-from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -67,23 +69,6 @@ def load_map(path):
 
 
 def plan(args):
-    import sensorimotor.analysis.map.planning as P
-
-    real = P.reverse_graph
-    if args.jump or args.counted:  # jumps dearer by args.jump; edges the path took, if counted
-
-        def dearer(model):
-            if args.counted:  # the pseudocount's entries within the blocks are no edges
-                blocks = np.where(model.counts > 0, model.T.blocks, 0.0)
-                model = replace(model, T=replace(model.T, blocks=blocks))
-            g = real(model).tocsr()
-            hub = model.n_states
-            g = g.tolil()
-            row = g.getrow(hub)  # reversed graph: row = the target, so hub's row = edges s -> hub
-            g[hub, row.indices] = row.data + args.jump
-            return g.tocsr()
-
-        P.reverse_graph = dearer
     db = load_database(args.db)
     model, kmeans, state_mean, occupancy = load_map(args.map)
     t0 = time.time()
@@ -96,7 +81,7 @@ def plan(args):
     top = true_pose_planning(db.world, db.layout, args.pair_seed, n, moves=Moves(db.behaviour))
     out["success"]["true pose"] = top["success"]
     se = {k: math.sqrt(v * (1 - v) / n) for k, v in out["success"].items()}
-    print("jump +", args.jump, "pairs", n, "seed", args.pair_seed, out["success"], "SE", se,
+    print("pairs", n, "seed", args.pair_seed, out["success"], "SE", se,
           "median steps", out["median_steps"], round(time.time() - t0), "s")  # fmt: skip
 
 
@@ -105,7 +90,7 @@ def why(args):
 
     db = load_database(args.db)
     model, kmeans, state_mean, occupancy = load_map(args.map)
-    graph, act = P.reverse_graph(model), model.active
+    graph, act = P.reverse_graph(model), model.active  # the default graph: no own paths
     q = [0, 0.1, 0.5, 0.9, 1]
     jump = 1 - np.log(model.T.rest.max(axis=0)[act])
     print("active states", act.sum(), "jump cost quantiles", np.quantile(jump, q).round(2))
@@ -146,8 +131,6 @@ p_.add_argument("db")
 p_.add_argument("map")
 p_.add_argument("--pairs", type=int, default=50)
 p_.add_argument("--pair-seed", type=int, default=1)
-p_.add_argument("--jump", type=float, default=0.0)
-p_.add_argument("--counted", action="store_true", help="edges: the Viterbi path's only")
 w_ = sub.add_parser("why")
 w_.add_argument("db")
 w_.add_argument("map")
