@@ -16,7 +16,7 @@ import reference_chmm as reference
 from conftest import assert_one_line_error
 from sensorimotor.analysis.analyze import representation_of
 from sensorimotor.analysis.clusters import assign_clusters, fit_kmeans
-from sensorimotor.analysis.map import planning
+from sensorimotor.analysis.map import mapping, planning
 from sensorimotor.analysis.map.cells import (
     ACTION_NAMES,
     Steps,
@@ -406,7 +406,7 @@ def test_cli_map_writes_strict_json_graphml_and_figures(cli, rooms1_db_path, tmp
     for rate in m["planning"]["success"].values():
         assert rate in (0.0, 0.5, 1.0)
     assert m["settings"]["contexts"] == N_CONTEXTS == 2  # the default, chosen on validation
-    from sensorimotor.analysis.map import chmm, mapping
+    from sensorimotor.analysis.map import chmm
     from sensorimotor.cli.analysis import map_cmd
     from sensorimotor.cli.app import MAX_CLONES, MAX_CLUSTERS, MAX_CONTEXTS
     from sensorimotor.cli.app import N_CONTEXTS as CLI_CONTEXTS
@@ -461,6 +461,31 @@ def test_transfer_takes_the_cells_of_another_world(rooms1_db_path, square_db_pat
     z = representation_of("raw", rooms1, "test")
     assert np.array_equal(test.cells, assign_clusters(own, z))
     assert len(train.cells) == len(rooms1.take("train"))
+
+
+def test_map_start_fine_hands_em_the_clones_of_the_cells_clusters(
+    rooms1_db_path, tmp_path, monkeypatch
+):
+    """``map_files(start="fine")`` starts EM from ``fine_clones`` of the training split's
+    representation and cells, with the pseudocount asked for."""
+    seen = {}
+
+    class Stop(Exception):
+        pass
+
+    def spy(cells, *args, **kwargs):
+        seen.update(kwargs, cells=cells)
+        raise Stop
+
+    monkeypatch.setattr(mapping, "fit_chmm", spy)
+    with pytest.raises(Stop):
+        map_files("raw", rooms1_db_path, tmp_path / "o", clusters=5, clones=3, start="fine",
+                  pseudocount=1e-4, pairs=0)  # fmt: skip
+    db = load_database(rooms1_db_path)
+    z = representation_of("raw", db, "train")
+    assert np.array_equal(seen["start"], fine_clones(z, seen["cells"], 3))
+    assert len(np.unique(seen["start"])) == 3
+    assert seen["pseudocount"] == 1e-4
 
 
 def test_map_refuses_bad_settings_and_other_layouts(rooms1_db_path, tmp_path):
