@@ -138,13 +138,17 @@ def _check_length(db: Database, split: str, k: int) -> None:
         )
 
 
-def cell_steps(run, db: Database, k: int, seed: int, fit_db: Database | None = None):
+def cell_steps(
+    run, db: Database, k: int, seed: int, fit_db: Database | None = None, z_train=None
+):
     """(train Steps, test Steps, the k-means) of ``db``: k-means (k = ``k``) fitted on the
-    training split of ``fit_db`` (or of ``db``), applied to both splits of ``db``."""
+    training split of ``fit_db`` (or of ``db``), applied to both splits of ``db``. ``z_train``:
+    the representation of ``db``'s training split, if the caller has it already."""
     for d, split in ((db, "train"), (db, "test"), (fit_db, "train")):
         if d is not None:
             _check_length(d, split, k)
-    z_train = representation_of(run, db, "train")
+    if z_train is None:
+        z_train = representation_of(run, db, "train")
     z_fit = z_train if fit_db is None else representation_of(run, fit_db, "train")
     kmeans = fit_kmeans(z_fit, k, seed)
     z_test = representation_of(run, db, "test")
@@ -228,10 +232,9 @@ def map_files(
     if not 0.0 < pseudocount <= 1.0:
         raise InputError(f"--pseudocount must lie in (0, 1], got {pseudocount}")
     run, db, fit_db, out = load_inputs(run, data, fit_data, out, OUTPUTS)
-    train, test, kmeans = cell_steps(run, db, clusters, seed, fit_db)
-    first = None
-    if start == "fine":
-        first = fine_clones(representation_of(run, db, "train"), train.cells, clones, seed)
+    z_train = representation_of(run, db, "train") if start == "fine" else None  # encoded once
+    train, test, kmeans = cell_steps(run, db, clusters, seed, fit_db, z_train)
+    first = fine_clones(z_train, train.cells, clones, seed) if start == "fine" else None
     if db.has_walls:
         world = db.world
     else:  # a recording: positions within the path's bounding box, no rooms, no planning
