@@ -279,6 +279,20 @@ def test_communities_of_the_map_find_the_two_rooms():
     assert communities(w, np.array([0, 1, 2]), seed=0)[3:].tolist() == [-1, -1, -1]
 
 
+def test_a_smaller_resolution_joins_communities_along_their_strongest_edges():
+    """Four cliques, joined in pairs by stronger edges than the pairs are to each other: four
+    communities at networkx's default resolution (1), the two pairs at a small one."""
+    w = np.zeros((12, 12))
+    for c in range(4):
+        w[3 * c : 3 * c + 3, 3 * c : 3 * c + 3] = 10.0
+    w[2, 3] = w[8, 9] = 3.0
+    w[5, 6] = 0.3
+    four = communities(w, np.arange(12), seed=0, resolution=1.0)
+    assert four.tolist() == np.repeat(range(4), 3).tolist()
+    pairs = communities(w, np.arange(12), seed=0, resolution=0.03)
+    assert pairs.tolist() == np.repeat(range(2), 6).tolist()
+
+
 def test_goal_distances_follow_the_map_to_the_goal():
     """A chain 0 -> 1 -> 2 -> 3 under action 1 (certain), state 4 pruned: distances 3, 2, 1, 0."""
     T = np.zeros((2, 5, 5))
@@ -412,6 +426,11 @@ def test_cli_map_writes_strict_json_graphml_and_figures(cli, rooms1_db_path, tmp
     from sensorimotor.cli.app import N_CONTEXTS as CLI_CONTEXTS
 
     assert CLI_CONTEXTS == N_CONTEXTS  # the CLI's copies, kept to refuse before imports
+    from sensorimotor.analysis.map import graphs
+    from sensorimotor.cli.app import MAX_RESOLUTION, RESOLUTION
+
+    assert (RESOLUTION, MAX_RESOLUTION) == (graphs.RESOLUTION, graphs.MAX_RESOLUTION)
+    assert m["settings"]["louvain_resolution"] == graphs.RESOLUTION
     assert (MAX_CLUSTERS, MAX_CLONES, MAX_CONTEXTS) == (
         mapping.MAX_CLUSTERS,
         mapping.MAX_CLONES,
@@ -449,6 +468,36 @@ def test_cli_map_bad_input_is_one_line_and_writes_nothing(cli, rooms1_db_path, t
     proc = cli("map", "raw", "--data", short, "--out", out)
     assert_one_line_error(proc, str(short), "split")
     assert not out.exists()
+
+
+def test_a_map_is_scored_on_a_fresh_database_of_its_world_only(
+    rooms1_db_path, square_db_path, tmp_path
+):
+    """--test-data: the map learned on the training split of --data, scored on the test split
+    of the fresh database (its steps, its ceilings); a database of another world is refused
+    before anything is written."""
+    fresh = tmp_path / "fresh.npz"
+    save_database(generate(load_world("rooms1"), 6_000, seed=7), fresh)
+    with pytest.raises(InputError, match="world differs"):
+        map_files("raw", rooms1_db_path, tmp_path / "no", clusters=5, clones=2, pairs=0,
+                  test_data=square_db_path)  # fmt: skip
+    assert not (tmp_path / "no").exists()
+    with pytest.raises(InputError, match="--resolution"):
+        map_files("raw", rooms1_db_path, tmp_path / "no", resolution=0.0)
+    kw = dict(clusters=5, clones=2, contexts=1, pairs=0, em_iters=3)
+    own = map_files("raw", rooms1_db_path, tmp_path / "own", **kw).metrics
+    m = map_files("raw", rooms1_db_path, tmp_path / "f", test_data=fresh, resolution=0.5, **kw)
+    m = m.metrics
+    assert m["test_data"] == str(fresh)
+    assert own["test_data"] is None
+    assert m["steps"]["test"] == len(load_database(fresh).take("test"))
+    assert m["steps"]["train"] == own["steps"]["train"]
+    assert m["states"] == own["states"]  # the same map
+    assert m["bits_per_step"]["map"] != own["bits_per_step"]["map"]  # other steps scored
+    mcl = m["ceiling"]["localisation"]["odometry"]["steps"]
+    n_own = len(load_database(rooms1_db_path).take("test"))
+    assert mcl == len(load_database(fresh).take("test")) != n_own
+    assert m["settings"]["louvain_resolution"] == 0.5
 
 
 def test_transfer_takes_the_cells_of_another_world(rooms1_db_path, square_db_path):

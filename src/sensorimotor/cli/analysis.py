@@ -15,7 +15,9 @@ from sensorimotor.cli.app import (
     MAX_CONTEXTS,
     MAX_EM_ITERS,
     MAX_PAIRS,
+    MAX_RESOLUTION,
     N_CONTEXTS,
+    RESOLUTION,
     RUN,
     app,
     err_console,
@@ -79,7 +81,7 @@ def analyze(
 
 
 @app.command("map")
-@reads(run=RUN, data=DATABASE, fit_data=DATABASE)
+@reads(run=RUN, data=DATABASE, fit_data=DATABASE, test_data=DATABASE)
 @writes(folder="out")
 def map_cmd(
     run: Annotated[str, typer.Argument(help="A run folder, or `raw` for the readings / range.")],
@@ -120,6 +122,16 @@ def map_cmd(
         float,
         typer.Option(min=1e-9, max=1.0, help="EM's pseudocount on every transition (S a row)."),
     ] = 1e-3,
+    test_data: Annotated[
+        Path | None,
+        typer.Option(help="Score on this fresh database's test split (same world and robot)."),
+    ] = None,
+    resolution: Annotated[
+        float,
+        typer.Option(
+            min=1e-6, max=MAX_RESOLUTION, help="Louvain's resolution for the communities."
+        ),
+    ] = RESOLUTION,
 ) -> None:
     """Learn a map from a representation's cells: the cell graph and a cloned HMM (EM, Viterbi,
     each clone split by the slow context), scored on the test split (bits/step, localisation,
@@ -144,6 +156,8 @@ def map_cmd(
             tol=tol,
             start=start,
             pseudocount=pseudocount,
+            test_data=test_data,
+            resolution=resolution,
         )
     print("\n".join(summary_lines(result.metrics)))
     err_console.print("wrote " + ", ".join(str(p) for p in result.files), soft_wrap=True)

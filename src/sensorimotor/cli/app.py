@@ -189,6 +189,7 @@ MAX_PAIRS = 3_000  # start/goal pairs a map plans (analysis.map.planning.MAX_PAI
 MAX_CLUSTERS, MAX_CLONES, MAX_CONTEXTS = 200, 200, 16  # a map's (analysis.map.mapping)
 MAX_EM_ITERS = 1_000  # a map's EM iterations: each is a pass over the training split, n C^2
 N_CONTEXTS = 2  # the default --contexts: analysis.map.context.N_CONTEXTS (tests check it)
+RESOLUTION, MAX_RESOLUTION = 0.05, 100.0  # Louvain's for a map (analysis.map.graphs; checked)
 MAX_ROOMS = 40  # a floor plan's rooms (sim.floorplan.MAX_ROOMS: about 5 s)
 MAX_SIZE = 200.0  # a floor plan's side (sim.floorplan.MAX_SIZE)
 MAX_DOOR = 100.0  # a doorway's width

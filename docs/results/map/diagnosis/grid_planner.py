@@ -9,6 +9,10 @@ true-pose ceiling on start/goal pairs drawn with seed S (choose on S = 1, report
 pairs ``map`` itself plans). The rows of docs/results/map/grid that made the pseudocount's
 jumps dearer or kept the counted edges only ran with the graph patched here; the package's
 planner does both on a lattice map now (``planning.reverse_graph(own_paths=True)``).
+``rooms DB MAP.npz``: Louvain's resolution against the rooms, scored as ``map`` scores it
+(``graphs.rooms_from_graph``: each step's community, from its filtered state, against its
+room) on the validation split of DB, for the map and the cell graph; choose the resolution on
+a database that is not the one reported (the package's ``graphs.RESOLUTION``).
 ``why DB MAP.npz``: the planner's distances to 5 goals against the jump's cost, and the map's
 active clones in each cell against the place-headings the cell holds.
 """
@@ -85,6 +89,33 @@ def plan(args):
           "median steps", out["median_steps"], round(time.time() - t0), "s")  # fmt: skip
 
 
+def rooms(args):
+    from sensorimotor.analysis.map.cells import cell_graph
+    from sensorimotor.analysis.map.graphs import best_states, rooms_from_graph
+    from sensorimotor.analysis.map.mapping import split_steps
+
+    db = load_database(args.db)
+    model, centres, _, _ = load_map(args.map)
+
+    class Nearest:  # the map's k-means as assign_clusters calls it
+        n_features_in_ = centres.cluster_centers_.shape[1]
+
+        def predict(self, z):
+            return pairwise_distances_argmin(z, centres.cluster_centers_)
+
+    train, val = (split_steps(db, Nearest(), representation_of("raw", db, s), s)
+                  for s in ("train", "val"))  # fmt: skip
+    graph = cell_graph(train.cells, train.actions, train.motors, model.n_cells)
+    best = best_states(model, val)
+    for resolution in args.resolutions:
+        out, _ = rooms_from_graph(model, graph, val, best, db.world, 0, resolution)
+        print(
+            f"resolution {resolution}: communities {out['communities']}, adjusted Rand map "
+            f"{out['adjusted_rand']:.3f}, cells {out['adjusted_rand_cells']:.3f}",
+            flush=True,
+        )
+
+
 def why(args):
     import sensorimotor.analysis.map.planning as P
 
@@ -131,8 +162,12 @@ p_.add_argument("db")
 p_.add_argument("map")
 p_.add_argument("--pairs", type=int, default=50)
 p_.add_argument("--pair-seed", type=int, default=1)
+r_ = sub.add_parser("rooms")
+r_.add_argument("db")
+r_.add_argument("map")
+r_.add_argument("--resolutions", type=float, nargs="+", default=[1, 0.3, 0.1, 0.03, 0.01, 0.003])
 w_ = sub.add_parser("why")
 w_.add_argument("db")
 w_.add_argument("map")
 a = p.parse_args()
-{"fit": fit, "plan": plan, "why": why}[a.cmd](a)
+{"fit": fit, "plan": plan, "rooms": rooms, "why": why}[a.cmd](a)

@@ -10,6 +10,14 @@ from sensorimotor.analysis.map.chmm import CloneHMM, filtered
 from sensorimotor.errors import InputError
 from sensorimotor.sim.world import World
 
+# Louvain's resolution (a smaller one, bigger communities; networkx's default is 1): chosen on
+# validation maps (the grid behaviour's seed-1 databases of Rooms1 and Rooms2, 16 rays, their
+# validation split; grid_planner.py rooms in docs/results/map/diagnosis) by the mean adjusted
+# Rand index over both worlds among 1, 0.3, 0.1, 0.05, 0.03, 0.02, 0.01, 0.003 (1: 0.16,
+# 0.1: 0.49, 0.05: 0.75, 0.03: 0.70, 0.01: 0.69); not validated on the paper behaviour's maps.
+RESOLUTION = 0.05
+MAX_RESOLUTION = 100.0  # past it nearly every node is a community of its own
+
 
 def networkx_or_refuse():
     """networkx (the ``graph`` extra), or an InputError saying how to install it."""
@@ -22,10 +30,12 @@ def networkx_or_refuse():
     return networkx
 
 
-def communities(weights: np.ndarray, nodes: np.ndarray, seed: int) -> np.ndarray:
-    """(N,) Louvain community of each node (-1 for those not in ``nodes``) of the undirected
-    graph whose edge i-j weighs ``weights[i, j] + weights[j, i]`` (``weights`` (N, N), dense or
-    scipy sparse); numbered by smallest node."""
+def communities(
+    weights: np.ndarray, nodes: np.ndarray, seed: int, resolution: float = RESOLUTION
+) -> np.ndarray:
+    """(N,) Louvain community (at ``resolution``) of each node (-1 for those not in ``nodes``)
+    of the undirected graph whose edge i-j weighs ``weights[i, j] + weights[j, i]``
+    (``weights`` (N, N), dense or scipy sparse); numbered by smallest node."""
     from scipy.sparse import coo_matrix, triu
 
     nx = networkx_or_refuse()
@@ -38,7 +48,9 @@ def communities(weights: np.ndarray, nodes: np.ndarray, seed: int) -> np.ndarray
     for i, j, v in zip(w.row, w.col, w.data, strict=True):
         if v and keep[i] and keep[j]:
             graph.add_edge(int(i), int(j), weight=float(v))
-    found = nx.community.louvain_communities(graph, weight="weight", seed=seed)
+    found = nx.community.louvain_communities(
+        graph, weight="weight", resolution=resolution, seed=seed
+    )
     label = np.full(w.shape[0], -1, dtype=np.int64)
     for c, members in enumerate(sorted(found, key=min)):
         label[list(members)] = c
@@ -51,15 +63,21 @@ def best_states(model: CloneHMM, steps: Steps) -> np.ndarray:
 
 
 def rooms_from_graph(
-    model: CloneHMM, graph: CellGraph, test: Steps, best: np.ndarray, world: World, seed: int
+    model: CloneHMM,
+    graph: CellGraph,
+    test: Steps,
+    best: np.ndarray,
+    world: World,
+    seed: int,
+    resolution: float = RESOLUTION,
 ) -> tuple[dict, np.ndarray]:
     """Communities of the map's and of the cell graph's transitions; adjusted Rand index of each
     test step's community (that of ``best``, its ``best_states``) against its room (null
     without named rooms)."""
     from sklearn.metrics import adjusted_rand_score
 
-    state_comm = communities(model.edge_counts(), np.flatnonzero(model.active), seed)
-    cell_comm = communities(graph.counts.sum(axis=0), np.arange(graph.k), seed)
+    state_comm = communities(model.edge_counts(), np.flatnonzero(model.active), seed, resolution)
+    cell_comm = communities(graph.counts.sum(axis=0), np.arange(graph.k), seed, resolution)
     out = {
         "communities": {
             "map": int(state_comm.max()) + 1,

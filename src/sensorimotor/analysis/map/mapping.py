@@ -18,14 +18,17 @@ cloned HMM (``chmm.fit_chmm``), each clone split by the slow context (``context.
   given plain and balanced (the mean over rooms of each room's recall: chance is 1 / rooms, so
   a read-out that always names the biggest room scores no better than chance). Room numbers
   need a world whose file names its rooms; otherwise they are null ("n/a");
-- **rooms from the graph** (``graphs.rooms_from_graph``): Louvain communities (networkx) of
-  the map's transition graph (Viterbi counts, both directions, all actions) and of the cell
-  graph; adjusted Rand index of the community of each test step (its most probable state)
-  against its room;
+- **rooms from the graph** (``graphs.rooms_from_graph``): Louvain communities (networkx, at
+  ``graphs.RESOLUTION``, set on validation maps) of the map's transition graph (Viterbi counts,
+  both directions, all actions) and of the cell graph; adjusted Rand index of the community of
+  each test step (its most probable state) against its room;
 - **planning** in the simulator (``planning.planning``): success rate of the map's planner
   and of the paper's random behaviour over ``pairs`` start/goal pairs (null with 0 pairs).
 
-One representation (one run) per call: the mean and sd over seeds are left to the caller.
+With ``test_data`` (``--test-data``) the test split is that of a fresh database of the same
+world, sensors and behaviour: the map and its cells are learned on ``data``, scored on steps
+it has never seen. One representation (one run) per call: the mean and sd over seeds are left
+to the caller.
 """
 
 from __future__ import annotations
@@ -65,6 +68,8 @@ from sensorimotor.analysis.map.context import (
     slow_context,
 )
 from sensorimotor.analysis.map.graphs import (
+    MAX_RESOLUTION,
+    RESOLUTION,
     best_states,
     map_graphs,
     networkx_or_refuse,
@@ -81,7 +86,7 @@ from sensorimotor.analysis.map.planning import (
 )
 from sensorimotor.errors import InputError
 from sensorimotor.files import atomic_path, write_text_atomic
-from sensorimotor.sim.database import Database
+from sensorimotor.sim.database import Database, load_database
 from sensorimotor.sim.world import World
 from sensorimotor.version import __version__
 
@@ -109,9 +114,7 @@ def _bounding_box(db, train: Steps, test: Steps) -> tuple[World, Steps, Steps]:
     return box, moved[0], moved[1]
 
 
-def check_settings(
-    k: int, clones: int, contexts: int = N_CONTEXTS, start: str = STARTS[0]
-) -> None:
+def check_settings(k: int, clones: int, contexts: int = N_CONTEXTS, start: str = STARTS[0]) -> None:
     """InputError unless 2 <= K <= MAX_CLUSTERS, 1 <= C <= MAX_CLONES, 1 <= N <= MAX_CONTEXTS,
     K C N <= MAX_STATES and ``start`` is one of STARTS."""
     if start not in STARTS:
@@ -138,9 +141,7 @@ def _check_length(db: Database, split: str, k: int) -> None:
         )
 
 
-def cell_steps(
-    run, db: Database, k: int, seed: int, fit_db: Database | None = None, z_train=None
-):
+def cell_steps(run, db: Database, k: int, seed: int, fit_db: Database | None = None, z_train=None):
     """(train Steps, test Steps, the k-means) of ``db``: k-means (k = ``k``) fitted on the
     training split of ``fit_db`` (or of ``db``), applied to both splits of ``db``. ``z_train``:
     the representation of ``db``'s training split, if the caller has it already."""
@@ -153,6 +154,22 @@ def cell_steps(
     kmeans = fit_kmeans(z_fit, k, seed)
     z_test = representation_of(run, db, "test")
     return split_steps(db, kmeans, z_train, "train"), split_steps(db, kmeans, z_test), kmeans
+
+
+def fresh_database(path: str | Path, db: Database, k: int) -> Database:
+    """The database at ``path``, refused unless it records the same world with the same
+    sensors and behaviour as ``db`` (the map's places, cells and actions must mean the same)."""
+    fresh = load_database(path)
+    _check_length(fresh, "test", k)
+    same = {
+        "world": fresh.meta.get("world") == db.meta.get("world"),
+        "sensor layout": fresh.meta.get("sensor_layout") == db.meta.get("sensor_layout"),
+        "behaviour": fresh.behaviour == db.behaviour,
+    }
+    for what, ok in same.items():
+        if not ok:
+            raise InputError(f"{fresh.source}: its {what} differs from {db.source}'s")
+    return fresh
 
 
 def split_steps(db: Database, kmeans, z: np.ndarray, split: str = "test") -> Steps:
@@ -216,12 +233,16 @@ def map_files(
     tol: float = TOL,
     start: str = "random",
     pseudocount: float = PSEUDOCOUNT,
+    test_data: str | Path | None = None,
+    resolution: float = RESOLUTION,
 ) -> MapResult:
     """Build the map of ``run``'s representation (``"raw"`` or a run folder) of ``data`` and
     write ``map.json``, the GraphML files and the figures into ``out`` (module docstring).
     ``progress(stage, i, number)``: after each EM or Viterbi iteration (its log-likelihood per
     step) and each planning pair (the map's success so far). ``start``: ``STARTS``;
-    ``pseudocount``: EM's, added to every transition count."""
+    ``pseudocount``: EM's, added to every transition count; ``test_data``: a fresh database of
+    the same world and robot whose test split is scored (default: ``data``'s);
+    ``resolution``: Louvain's, for the communities."""
     from sensorimotor.analysis.map.plots import plot_map_graph, plot_place_fields, plot_plans
     from sensorimotor.sim.plots import save_figure
 
@@ -231,9 +252,14 @@ def map_files(
         raise InputError(f"--pairs must be from 0 to {MAX_PAIRS:,}, got {pairs}")
     if not 0.0 < pseudocount <= 1.0:
         raise InputError(f"--pseudocount must lie in (0, 1], got {pseudocount}")
+    if not 0.0 < resolution <= MAX_RESOLUTION:
+        raise InputError(f"--resolution must lie in (0, {MAX_RESOLUTION:g}], got {resolution}")
     run, db, fit_db, out = load_inputs(run, data, fit_data, out, OUTPUTS)
+    test_db = db if test_data is None else fresh_database(test_data, db, clusters)
     z_train = representation_of(run, db, "train") if start == "fine" else None  # encoded once
     train, test, kmeans = cell_steps(run, db, clusters, seed, fit_db, z_train)
+    if test_db is not db:
+        test = split_steps(test_db, kmeans, representation_of(run, test_db, "test"))
     first = fine_clones(z_train, train.cells, clones, seed) if start == "fine" else None
     if db.has_walls:
         world = db.world
@@ -257,7 +283,7 @@ def map_files(
         bits[name] = float(-log_likelihood(T, test.cells, test.actions)[1:].mean()) / math.log(2)
     loc, state_mean, occupancy = localisation(model, train, test, world)
     best = best_states(model, test)  # the place fields' and the communities' state of a step
-    rooms, comm = rooms_from_graph(model, graph, test, best, world, seed)
+    rooms, comm = rooms_from_graph(model, graph, test, best, world, seed, resolution)
     plans, traces = {"success": {"map": None, "random": None}, "pairs": 0}, []
     if pairs:
         encoder = encoder_of(run, db.max_range)
@@ -271,8 +297,9 @@ def map_files(
         "model": RAW if run == RAW else run.kind,
         "data": str(data),
         "fit_data": None if fit_data is None else str(fit_data),
+        "test_data": None if test_data is None else str(test_data),
         "world": world.name,
-        "split": "test (the model fitted on the train split)",
+        "split": "test (the model fitted on the train split of data)",
         "steps": {"train": len(train.cells), "test": len(test.cells)},
         "settings": {
             "clusters": clusters,
@@ -285,13 +312,14 @@ def map_files(
             "em_tol": tol,
             "pseudocount": pseudocount,
             "start": start,
+            "louvain_resolution": resolution,
             "markov_smoothing": SMOOTHING,
             "grid": GRID,
         },
         "versions": _versions(),
         "bits_per_step": bits,
         "baselines": baselines(train, val, test, world, clusters, int(model.active.sum()), seed),
-        "ceiling": ceilings(db, world, seed, pairs) if db.has_walls else NO_CEILING,
+        "ceiling": ceilings(test_db, world, seed, pairs) if db.has_walls else NO_CEILING,
         "states": {
             "total": model.n_states,
             "active": int(model.active.sum()),
@@ -359,14 +387,15 @@ def summary_lines(m: dict) -> list[str]:
         f"{m['model']} on {m['world']}: {m['settings']['clusters']} cells x "
         f"{m['settings']['clones']} clones x {m['settings'].get('contexts', 1)} contexts, "
         f"{m['states']['active']} active states",
+        f"  scored on the test split of {m.get('test_data') or m['data']}",
         "  bits/step: " + ", ".join(f"{k} {_fmt(v)}" for k, v in b.items()),
         *_baseline_lines(m),
         f"  room accuracy: map {_fmt(ra['map'])}, cells {_fmt(ra['cells'])}, "
         f"chance {_fmt(ra['chance'])}",
         f"  position error: map {_fmt(pe['map'], '.2f')}, cells {_fmt(pe['cells'], '.2f')}, "
         f"chance {_fmt(pe['chance'], '.2f')}",
-        f"  rooms from the graph: adjusted Rand {_fmt(r['adjusted_rand'])} (map), "
-        f"{_fmt(r['adjusted_rand_cells'])} (cells)",
+        f"  rooms from the graph: adjusted Rand {_fmt(r['adjusted_rand'])} (map, "
+        f"{r['communities']['map']} communities), {_fmt(r['adjusted_rand_cells'])} (cells)",
         f"  planning success: map {_fmt(m['planning']['success']['map'], '.2f')}, random "
         f"{_fmt(m['planning']['success']['random'], '.2f')} ({m['planning']['pairs']} pairs)",
         *_planning_warning(m["planning"]),
