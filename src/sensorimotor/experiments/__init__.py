@@ -51,6 +51,11 @@ EXPERIMENTS: dict[str, Experiment] = {
     for e in (
         Experiment("map", "sensorimotor.experiments.map", "a map learned from the cells"),
         Experiment(
+            "gridmap",
+            "sensorimotor.experiments.gridmap",
+            "the map in its own regime: a lattice behaviour, rooms and plans on fresh databases",
+        ),
+        Experiment(
             "scaling", "sensorimotor.experiments.scaling", "more rays, noise, unseen floor plans"
         ),
         Experiment("rl", "sensorimotor.experiments.rl", "PPO agents on the Rooms1 encoders"),
