@@ -326,6 +326,28 @@ def test_on_a_lattice_map_the_plan_follows_the_paths_the_map_took():
     assert own[:4, 4].toarray() == pytest.approx(1 + planning.FALLBACK)  # landing from the hub
 
 
+def test_the_figure_keeps_the_first_reached_and_the_first_missed_episodes(monkeypatch):
+    """``planning`` keeps N_TRACES reached and N_TRACES missed episodes of the map, the first
+    of each in pair order, with their pair (so that the true pose is drawn on the same pair)."""
+    outcome = iter([5, None, 7, 9, None, None, 3])  # the map's steps on pairs 0..6
+    monkeypatch.setattr(planning, "reverse_graph", lambda *a, **k: None)
+    monkeypatch.setattr(planning, "goal_states", lambda *a, **k: None)
+    monkeypatch.setattr(planning, "goal_distances", lambda *a, **k: None)
+
+    def episode(*args, use_map, trace=None, **kwargs):
+        if trace is not None:
+            trace.append(args[7][:2])  # the start
+        return next(outcome) if use_map else None
+
+    monkeypatch.setattr(planning, "run_episode", episode)
+    out, traces = planning.planning(load_world("rooms1"), None, None, None, None, None, None,
+                                    n_pairs=7)  # fmt: skip
+    assert planning.N_TRACES == 2
+    assert [(t[0], t[3]) for t in traces] == [(0, 5), (1, None), (2, 7), (4, None)]
+    assert all(t[1].shape == (1, 2) for t in traces)
+    assert out["success"]["map"] == 4 / 7
+
+
 def test_a_map_whose_blocks_would_not_fit_is_refused_before_it_is_fitted():
     rng = np.random.default_rng(0)
     cells, actions = rng.integers(0, 200, 50_000), rng.integers(0, 4, 50_000)

@@ -354,11 +354,14 @@ def map_files(
     )
     figures = {"place_fields.png": place, "map_graph.png": drawn.figure}
     if traces:
-        true_pose: list = []  # the same pairs (the planner's seed), its first len(traces)
-        true_pose_planning(world, db.layout, seed, len(traces), moves=Moves(db.behaviour),
+        true_pose: list = []  # the same pairs (the planner's seed), up to the last one drawn
+        true_pose_planning(world, db.layout, seed, traces[-1][0] + 1, moves=Moves(db.behaviour),
                            traces=true_pose)  # fmt: skip
         title = f"{metrics['model']} on {world.name}: the map plans (blue), the true pose (grey)"
-        figures["plans.png"] = plot_plans(world, traces, GOAL_RADIUS, title, true_pose)
+        drawn = [t[1:] for t in traces]
+        figures["plans.png"] = plot_plans(
+            world, drawn, GOAL_RADIUS, title, [true_pose[t[0]] for t in traces]
+        )
     out.mkdir(parents=True, exist_ok=True)
     files = []
     for name, g in (("map.graphml", the_map), ("cell_graph.graphml", the_cells)):

@@ -68,7 +68,7 @@ N_PAIRS = 300  # start/goal pairs: 2 binomial SEs of a 5-seed mean lead (0.035) 
 BUDGET = 400  # steps an episode may take
 GOAL_RADIUS = 4.0
 FALLBACK = 100.0  # a jump's extra cost on a lattice map: dearer than any path of its own edges
-N_TRACES = 2  # episodes of the map whose trajectories are kept (the figure)
+N_TRACES = 2  # the map's first reached and first missed episodes, this many each (the figure)
 MOVING = (1, 2, 3)  # right, straight, left (cells.ACTION_NAMES)
 R_RANGE = {1: (-math.pi / 6, -STRAIGHT), 2: (-STRAIGHT, STRAIGHT), 3: (STRAIGHT, math.pi / 6)}
 
@@ -308,8 +308,9 @@ def planning(
     moves: Moves = PAPER_MOVES,
 ) -> tuple[dict, list]:
     """Success rates of the map's planner and of the random behaviour over ``n_pairs``
-    start/goal pairs (module docstring), and the first N_TRACES of the map's episodes as
-    (positions (n, 2), goal (2,), steps or None). ``encoder()`` returns a fresh function from
+    start/goal pairs (module docstring), and the map's first N_TRACES reached and first
+    N_TRACES missed episodes, in pair order, as (pair, positions (n, 2), goal (2,), steps or
+    None). ``encoder()`` returns a fresh function from
     one reading (R,) and the command before it to its representation (D,);
     ``progress(pairs done, success so far)`` after each pair."""
     reached = {"map": [], "random": []}
@@ -332,12 +333,13 @@ def planning(
                 np.random.default_rng(seed_),
                 budget,
                 use_map=name == "map",
-                trace=trace if name == "map" and pair < N_TRACES else None,
+                trace=trace if name == "map" else None,
                 moves=moves,
             )
             reached[name].append(steps)
-        if pair < N_TRACES:
-            traces.append((np.array(trace), goal_xy, reached["map"][-1]))
+        steps = reached["map"][-1]
+        if sum((t[3] is None) == (steps is None) for t in traces) < N_TRACES:
+            traces.append((pair, np.array(trace), goal_xy, steps))
         if progress is not None:
             progress(pair + 1, sum(s is not None for s in reached["map"]) / (pair + 1))
     out = {"success": {}, "median_steps": {}, "pairs": n_pairs, "budget": budget}
