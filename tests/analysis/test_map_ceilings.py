@@ -155,6 +155,34 @@ def test_on_a_lattice_database_the_planners_move_as_the_lattice_behaviour(monkey
     assert Moves("grid").lattice_command(3) == (0.0, math.pi / 2)
 
 
+def test_explore_hands_that_share_of_the_map_planners_steps_to_the_behaviour(monkeypatch):
+    """``run_episode(explore=p)``: with p = 0 the behaviour's step comes only at the reflex and
+    the episode is the one it always was; with p = 1 every step is the behaviour's."""
+    world = load_world("rooms1")
+    goal, start, _ = start_goal_pairs(world, 0, 1)[0]
+    kmeans = type("K", (), {"cluster_centers_": np.zeros((1, 5))})()
+    walks = {}
+    for explore in (0.0, 1.0):
+        calls = []
+        walk = Moves.walk
+
+        def counted(self, reading, rng, calls=calls, walk=walk):
+            calls.append(reading)
+            return walk(self, reading, rng)
+
+        monkeypatch.setattr(Moves, "walk", counted)
+        trace: list = []
+        model = _one_cell_map()
+        planning.run_episode(world, DEFAULT_LAYOUT, lambda: lambda z, m: np.zeros(5), kmeans, model,
+                             np.zeros(model.n_states), goal, start, np.random.default_rng(0),
+                             budget=80, trace=trace, explore=explore)  # fmt: skip
+        monkeypatch.setattr(Moves, "walk", walk)
+        walks[explore] = (calls, trace)
+    reflex = walks[0.0][0]
+    assert all(r < planning.TURN_THRESHOLD for r in reflex)
+    assert len(walks[1.0][0]) == len(walks[1.0][1]) - 1 > len(reflex)  # every step but the last
+
+
 def test_on_the_grid_the_true_pose_planner_turns_once_and_goes():
     """The grid's turns move nothing: judged as the paper's moves are (the heading LOOK units
     ahead), its planner turned left and right in place and missed 2 of these 12 goals."""

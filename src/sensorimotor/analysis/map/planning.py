@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sensorimotor.analysis.map.cells import STRAIGHT
+from sensorimotor.analysis.map.cells import STRAIGHT, action_bins
 from sensorimotor.analysis.map.chmm import CloneHMM
 from sensorimotor.sim.behaviours import (
     BEHAVIOURS,
@@ -222,10 +222,12 @@ def run_episode(
     use_map: bool = True,
     trace: list | None = None,
     moves: Moves = PAPER_MOVES,
+    explore: float = 0.0,
 ) -> int | None:
     """Steps to the goal (None if not reached within ``budget``) from ``start``; with
     ``use_map`` the map's planner acts, otherwise the behaviour's random walk (``moves``). The
-    positions visited are appended to ``trace`` if given."""
+    positions visited are appended to ``trace`` if given. ``explore``: the share of the map's
+    steps on which the behaviour's own step replaces the plan's (0: none, no draw made)."""
     C = model.n_clones
     far = np.where(np.isfinite(distances), distances, np.nan)
     far = np.where(np.isnan(far), np.nanmax(far) + 10.0 if np.isfinite(far).any() else 0.0, far)
@@ -258,6 +260,9 @@ def run_episode(
         if nearest < TURN_THRESHOLD:
             action = 0
             d, r = moves.walk(nearest, rng)
+        elif explore and rng.random() < explore:
+            d, r = moves.walk(nearest, rng)
+            action = int(action_bins(np.array([[d, r]]))[0])  # as the map's training saw it
         else:
             expected = after[:, cell * C : (cell + 1) * C] @ alpha  # (3,)
             action = MOVING[int(np.argmin(expected + 1e-9 * rng.random(3)))]
@@ -306,13 +311,15 @@ def planning(
     budget: int = BUDGET,
     progress=None,
     moves: Moves = PAPER_MOVES,
+    explore: float = 0.0,
 ) -> tuple[dict, list]:
     """Success rates of the map's planner and of the random behaviour over ``n_pairs``
     start/goal pairs (module docstring), and the map's first N_TRACES reached and first
     N_TRACES missed episodes, in pair order, as (pair, positions (n, 2), goal (2,), steps or
     None). ``encoder()`` returns a fresh function from
     one reading (R,) and the command before it to its representation (D,);
-    ``progress(pairs done, success so far)`` after each pair."""
+    ``progress(pairs done, success so far)`` after each pair; ``explore``: ``run_episode``'s,
+    for the map's planner."""
     reached = {"map": [], "random": []}
     traces = []
     graph = reverse_graph(model, own_paths=bool(moves.turn))
@@ -335,6 +342,7 @@ def planning(
                 use_map=name == "map",
                 trace=trace if name == "map" else None,
                 moves=moves,
+                explore=explore if name == "map" else 0.0,
             )
             reached[name].append(steps)
         steps = reached["map"][-1]
