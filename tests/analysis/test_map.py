@@ -428,6 +428,7 @@ def test_cli_map_writes_strict_json_graphml_and_figures(cli, rooms1_db_path, tmp
     assert 0 <= top["localisation"]["balanced_room_accuracy"] <= 1  # its quality: test_map_ceilings
     assert top["localisation"]["no_odometry"]["balanced_room_accuracy"] is not None
     assert top["planning"]["success"] in (0.0, 0.5, 1.0)
+    assert m["planning"]["explore"] == 0.0  # the paper's behaviour: the plan alone
     assert "ceilings: balanced room accuracy of MCL" in proc.stdout
     assert all(0 < v < b["unigram"] for v in higher.values())
     assert "baselines: bits/step markov2" in proc.stdout

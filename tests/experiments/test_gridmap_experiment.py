@@ -11,6 +11,7 @@ import pytest
 
 from sensorimotor import experiments as ex
 from sensorimotor.analysis.map import hmm
+from sensorimotor.analysis.map.planning import EXPLORE
 from sensorimotor.errors import InputError
 from sensorimotor.experiments import gridmap
 from sensorimotor.jobs.workers import run_jobs
@@ -94,6 +95,7 @@ def test_run_maps_on_fresh_databases_caches_and_the_section_reads_it(
     assert one["steps"]["test"] == len(fresh.take("test"))
     assert one["settings"]["start"] == "fine"
     assert one["settings"]["pseudocount"] == gridmap.PSEUDOCOUNT
+    assert one["planning"]["explore"] == EXPLORE > 0  # a lattice behaviour's planner explores
     rows = found["worlds"]["rooms1"]["rows"]
     assert rows["planning success: map"]["values"] == [one["planning"]["success"]["map"]]
     assert list(found["worlds"]) == ["rooms1"]  # Square has no rooms to score
