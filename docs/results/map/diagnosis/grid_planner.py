@@ -4,7 +4,7 @@
 map of ``sensorimotor map raw --data DB --clusters K --clones C --contexts N [--start fine]
 [--pseudocount P]`` (the same calls as ``mapping.map_files``; K 200, C 75, N 1 by default),
 its arrays saved (no pickle).
-``plan DB MAP.npz --pairs N --pair-seed S``: the map's planner (``planning.planning``) and the
+``plan DB MAP.npz --pairs N --pair-seed S [--explore P]``: the map's planner (``planning.planning``) and the
 true-pose ceiling on start/goal pairs drawn with seed S (choose on S = 1, report on S = 0, the
 pairs ``map`` itself plans). The rows of docs/results/map/grid that made the pseudocount's
 jumps dearer or kept the counted edges only ran with the graph patched here; the package's
@@ -78,7 +78,7 @@ def plan(args):
     t0 = time.time()
     out, _ = planning(
         db.world, db.layout, encoder_of("raw", db.max_range), kmeans, model, state_mean,
-        occupancy, args.pair_seed, args.pairs, moves=Moves(db.behaviour),
+        occupancy, args.pair_seed, args.pairs, moves=Moves(db.behaviour), explore=args.explore,
         progress=lambda i, r: print(f"pair {i}: {r:.3f}", flush=True) if i % 10 == 0 else None,
     )  # fmt: skip
     n = args.pairs
@@ -162,6 +162,7 @@ p_.add_argument("db")
 p_.add_argument("map")
 p_.add_argument("--pairs", type=int, default=50)
 p_.add_argument("--pair-seed", type=int, default=1)
+p_.add_argument("--explore", type=float, default=None, help="planning.EXPLORE by default")
 r_ = sub.add_parser("rooms")
 r_.add_argument("db")
 r_.add_argument("map")
