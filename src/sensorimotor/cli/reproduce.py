@@ -66,7 +66,9 @@ def reproduce(
         str | None,
         typer.Option(
             help="Experiments past the paper to run after its stages, comma-separated, each "
-            "with its own report section: map (a map learned from the cells), scaling (more "
+            "with its own report section: map (a map learned from the cells), gridmap (the "
+            "map in its own regime: the grid behaviour, rooms and plans on fresh databases, 5 "
+            "seeds at the paper's scale: about an hour on 2 workers), scaling (more "
             "rays, noise, unseen floor plans), rl (PPO agents on the Rooms1 encoders), walls "
             "(Table I over wall layouts that fit the paper's sentences), real (a real robot's "
             "log and a real campus map), memory (Rec-SMA, a memory that reads the motor "
