@@ -179,9 +179,9 @@ def aggregate(per_map: list[tuple[str, int, dict]]) -> dict:
         maps = sorted((k, m) for w, k, m in per_map if w == world)
         rows = {label: _numbers([_get(m, path) for _, m in maps]) for label, path in ROWS.items()}
         top = rows["  true pose (ceiling)"]["mean"]
-        plan_goal = GOALS["planning"] if top is None else min(
-            GOALS["planning"], GOALS["planning_of_ceiling"] * top
-        )  # fmt: skip
+        plan_goal = GOALS["planning"]
+        if top is not None:
+            plan_goal = min(plan_goal, GOALS["planning_of_ceiling"] * top)
         out[world] = {
             "seeds": [k for k, _ in maps],
             "rows": rows,

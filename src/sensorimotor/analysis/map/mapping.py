@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sensorimotor.analysis.analyze import RAW, load_inputs, representation_of
+from sensorimotor.analysis.analyze import RAW, _check_same_layout, load_inputs, representation_of
 from sensorimotor.analysis.clusters import N_CLUSTERS, assign_clusters, fit_kmeans
 from sensorimotor.analysis.map.baselines import baselines
 from sensorimotor.analysis.map.ceilings import NO_CEILING, ceilings, true_pose_planning
@@ -141,19 +141,29 @@ def _check_length(db: Database, split: str, k: int) -> None:
         )
 
 
-def cell_steps(run, db: Database, k: int, seed: int, fit_db: Database | None = None, z_train=None):
+def cell_steps(
+    run,
+    db: Database,
+    k: int,
+    seed: int,
+    fit_db: Database | None = None,
+    z_train=None,
+    test_db: Database | None = None,
+):
     """(train Steps, test Steps, the k-means) of ``db``: k-means (k = ``k``) fitted on the
-    training split of ``fit_db`` (or of ``db``), applied to both splits of ``db``. ``z_train``:
-    the representation of ``db``'s training split, if the caller has it already."""
-    for d, split in ((db, "train"), (db, "test"), (fit_db, "train")):
+    training split of ``fit_db`` (or of ``db``), applied to ``db``'s training split and to the
+    test split of ``test_db`` (or of ``db``). ``z_train``: the representation of ``db``'s
+    training split, if the caller has it already."""
+    test_db = db if test_db is None else test_db
+    for d, split in ((db, "train"), (test_db, "test"), (fit_db, "train")):
         if d is not None:
             _check_length(d, split, k)
     if z_train is None:
         z_train = representation_of(run, db, "train")
     z_fit = z_train if fit_db is None else representation_of(run, fit_db, "train")
     kmeans = fit_kmeans(z_fit, k, seed)
-    z_test = representation_of(run, db, "test")
-    return split_steps(db, kmeans, z_train, "train"), split_steps(db, kmeans, z_test), kmeans
+    z_test = representation_of(run, test_db, "test")
+    return split_steps(db, kmeans, z_train, "train"), split_steps(test_db, kmeans, z_test), kmeans
 
 
 def fresh_database(path: str | Path, db: Database, k: int) -> Database:
@@ -161,12 +171,11 @@ def fresh_database(path: str | Path, db: Database, k: int) -> Database:
     sensors and behaviour as ``db`` (the map's places, cells and actions must mean the same)."""
     fresh = load_database(path)
     _check_length(fresh, "test", k)
-    same = {
-        "world": fresh.meta.get("world") == db.meta.get("world"),
-        "sensor layout": fresh.meta.get("sensor_layout") == db.meta.get("sensor_layout"),
-        "behaviour": fresh.behaviour == db.behaviour,
-    }
-    for what, ok in same.items():
+    _check_same_layout(db, fresh)
+    for what, ok in (
+        ("world", fresh.meta.get("world") == db.meta.get("world")),
+        ("behaviour", fresh.behaviour == db.behaviour),
+    ):
         if not ok:
             raise InputError(f"{fresh.source}: its {what} differs from {db.source}'s")
     return fresh
@@ -257,9 +266,7 @@ def map_files(
     run, db, fit_db, out = load_inputs(run, data, fit_data, out, OUTPUTS)
     test_db = db if test_data is None else fresh_database(test_data, db, clusters)
     z_train = representation_of(run, db, "train") if start == "fine" else None  # encoded once
-    train, test, kmeans = cell_steps(run, db, clusters, seed, fit_db, z_train)
-    if test_db is not db:
-        test = split_steps(test_db, kmeans, representation_of(run, test_db, "test"))
+    train, test, kmeans = cell_steps(run, db, clusters, seed, fit_db, z_train, test_db)
     first = fine_clones(z_train, train.cells, clones, seed) if start == "fine" else None
     if db.has_walls:
         world = db.world
