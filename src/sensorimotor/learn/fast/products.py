@@ -30,11 +30,14 @@ def linear(h: torch.Tensor, w: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     return torch.baddbmm(b, h, w.mT)
 
 
-def weight_grad(dy: torch.Tensor, h: torch.Tensor, out: torch.Tensor) -> None:
-    """out (K, out, in) = dy^T h, for dy (K, B, out) and h (K, B, in). Over a tall B (a
-    recurrent chunk's 1,280 steps) the product with fewer rows is the faster one, and the copy
-    into out costs little."""
+def weight_grad(dy: torch.Tensor, h: torch.Tensor, out: torch.Tensor, add: bool = False) -> None:
+    """out (K, out, in) = dy^T h (``add``: out += dy^T h), for dy (K, B, out) and h (K, B, in).
+    Over a tall B (a recurrent chunk's 1,280 steps) the product with fewer rows is the faster
+    one, and the copy into out costs little."""
     if h.shape[-1] < NARROW <= dy.shape[-1] or (h.shape[-2] >= TALL and h.shape[-1] < dy.shape[-1]):
-        out.copy_(torch.bmm(h.mT, dy).mT)
+        g = torch.bmm(h.mT, dy).mT
+        out.add_(g) if add else out.copy_(g)
+    elif add:
+        out.add_(torch.bmm(dy.mT, h))
     else:
         torch.bmm(dy.mT, h, out=out)

@@ -207,16 +207,20 @@ class StackedEncoders:
             hs.append(h)
         return hs
 
-    def _backward(self, plan, grads, chain: str, hs, dy: torch.Tensor, input_grad=False):
-        """Fill the gradients of one chain's layers; return d/d(chain input) if asked."""
+    def _backward(self, plan, grads, chain: str, hs, dy: torch.Tensor, input_grad=False, add=False):
+        """Fill the gradients of one chain's layers (``add``: add to them, for a chain applied
+        several times); return d/d(chain input) if asked."""
         layers = self.chains[chain]
         for j in range(len(layers) - 1, -1, -1):
             i = layers[j]
             w = plan[i][0]  # (K, out, in)
             h = hs[j]  # (K, B, in): input of layer i
             wi, bi = self.linear_index[i]
-            weight_grad(dy, h, grads[wi])  # (K, out, in) = dy^T h
-            torch.sum(dy, 1, keepdim=True, out=grads[bi])  # (K, 1, out)
+            weight_grad(dy, h, grads[wi], add)  # (K, out, in) = dy^T h
+            if add:
+                grads[bi].add_(dy.sum(1, keepdim=True))
+            else:
+                torch.sum(dy, 1, keepdim=True, out=grads[bi])  # (K, 1, out)
             if j:
                 dy = relu_grad_(matmul(dy, w), h)  # (K, B, in); h is a ReLU output
             elif input_grad:

@@ -1,14 +1,14 @@
 """Several seeds of a motor memory (Rec-SMA) trained at once: the stacked LSTM of
-``stacked_lstm`` under an open-loop head run by autograd.
+``stacked_lstm`` under an open-loop head, forward and backward by hand.
 
 Rec-SMA trains on 4 streams of 256 steps (``engine._open_loop_epoch``), so a seed alone keeps
 a core busy with tiny products: every time step of the LSTM and every step of the open loop
 is a handful of calls on a few hundred numbers, for forward and backward alike. Stacked, K
 seeds share each call. The memory (``sensor_in``, the LSTM reading [h_t, m_{t-1}],
-``sensor_out``) runs through ``stacked_lstm``'s kernels, forward and backward by hand; the
-head, ``models.SensorimotorEncoder.ahead`` on stacked weights (``baddbmm`` per layer), runs
-under autograd from the beliefs z_s, whose gradient then goes back through the memory by
-hand. Shapes are time-major, (K, T, B, .):
+``sensor_out``) runs through ``stacked_lstm``'s kernels; the head,
+``models.SensorimotorEncoder.ahead`` on stacked weights, through ``StackedEncoders``'s layer
+passes (``_forward``, ``_backward``), one k at a time (``_head``); the gradient of the
+beliefs z_s then goes back through the memory. Shapes are time-major, (K, T, B, .):
 
     memory   x_t = [relu(W_in s_t + b_in), m_{t-1}]    h_t = LSTM(x_t)    z_t = W_out h_t + b
     head     z^0 = z_t (every ``every``-th t)    for k = 0 .. A - 1:
@@ -38,21 +38,63 @@ from sensorimotor.learn.fast.stacked_lstm import (
     lstm_forward,
 )
 
-HEAD = ("motor_encoder", "predictor", "transition")  # the chains autograd runs
-
 OpenLoopState = tuple[State, torch.Tensor | None]  # the LSTM's, and the last command (B, 2)
 
 
-def _chain(net: StackedEncoders, leaves: dict[int, torch.Tensor], chain: str, h):
-    """One chain of ``nn.Linear`` layers on stacked weights, under autograd: h (K, N, in) ->
-    (K, N, out), a ReLU after all but the last."""
-    layers = net.chains[chain]
-    for i in layers:
-        w, b = (leaves[j] for j in net.linear_index[i])
-        h = torch.baddbmm(b, h, w.mT)  # (K, N, out)
-        if i != layers[-1]:
-            h = h.relu()
-    return h
+def _head(
+    net: StackedEncoders,
+    z: torch.Tensor,
+    xm: torch.Tensor,
+    y: torch.Tensor,
+    weight: torch.Tensor,
+    ahead: int,
+    every: int,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """The open-loop head of every seed, forward and backward by hand from the beliefs z
+    (K, T, B, 10): its chains' gradients into ``net.grads``; returns d loss / d z (K, T, B, 10)
+    and each seed's weighted squared error summed (K,). xm, y and weight as ``forward_backward``'s.
+
+    One k at a time, so that the predictor's hidden layer (K, T'B, 128) stays in the cache
+    (all k at once, under autograd, it went through memory at twice the cost): the predictor's
+    gradient goes to its input at once, then the transitions' run back from k = A - 1 to 0."""
+    plan, grads = net.layers, net.grads
+    K, T, B, zs = z.shape
+    for chain in ("predictor", "transition"):  # applied at every k: their gradients add up
+        for i in net.chains[chain]:
+            for j in net.linear_index[i]:
+                grads[j].zero_()
+    hm = net._forward(plan, "motor_encoder", xm.reshape(1, -1, xm.shape[-1]).expand(K, -1, -1))
+    z_m = hm[-1].view(K, len(xm), B, -1)  # (K, T + A - 1, B, 5): m_t's code at [:, t]
+    belief = z[:, ::every]  # (K, T', B, 10)
+    t_ = belief.shape[1]
+    rows = t_ * B
+    belief = belief.reshape(K, rows, zs)
+    scale = 2.0 / weight.sum().clamp(min=1)  # d/dpred of the loss is scale w (pred - s)
+    per_seed = z.new_zeros(K)
+    dzz, trans = [], []  # d loss / d [belief, z_m] through the predictor; the transitions' inputs
+    for k in range(ahead):
+        zz = torch.cat([belief, z_m[:, k : k + T : every].reshape(K, rows, -1)], dim=-1)
+        hp = net._forward(plan, "predictor", zz)  # [(K, T'B, 15), (K, T'B, 128), (K, T'B, 5)]
+        diff = hp[-1] - y[k : k + T : every].reshape(1, rows, -1)  # ~ s_{t+k+1}
+        wd = diff * weight[k].reshape(1, rows, 1)
+        per_seed += (wd * diff).sum((1, 2))
+        dzz.append(net._backward(plan, grads, "predictor", hp, wd.mul_(scale), True, add=True))
+        if k + 1 < ahead:
+            trans.append(net._forward(plan, "transition", zz))  # [zz, (K, T'B, 64), (K, T'B, 10)]
+            belief = belief + trans[-1][-1]  # the belief after m_{t+k}
+    dzm = torch.zeros_like(z_m)  # (K, T + A - 1, B, 5)
+    g = None  # d loss / d belief_{k+1}
+    for k in range(ahead - 1, -1, -1):
+        d = dzz[k]  # (K, T'B, 15)
+        if g is not None:  # belief_{k+1} = belief_k + transition(zz_k)
+            d = d + net._backward(plan, grads, "transition", trans[k], g, True, add=True)
+            d[..., :zs] += g
+        g = d[..., :zs]
+        dzm[:, k : k + T : every] += d[..., zs:].reshape(K, t_, B, -1)
+    net._backward(plan, grads, "motor_encoder", hm, dzm.view(K, -1, dzm.shape[-1]))
+    dz = torch.zeros_like(z)
+    dz[:, ::every] = g.reshape(K, t_, B, zs)
+    return dz, per_seed
 
 
 def forward_backward(
@@ -92,34 +134,9 @@ def forward_backward(
     (i_out,) = net.chains["sensor_out"]
     z = linear(inputs[-1], *plan[i_out])  # (K, TB, 10)
 
-    # the head under autograd, from the beliefs z_s
-    leaves = {j: net.params[j].detach().requires_grad_() for ch in HEAD
-              for i in net.chains[ch] for j in net.linear_index[i]}  # fmt: skip
-    z_leaf = z.view(K, T, B, -1).detach().requires_grad_()  # (K, T, B, 10)
-    with torch.enable_grad():
-        z_m = _chain(net, leaves, "motor_encoder", xm.reshape(1, -1, 2).expand(K, -1, -1))
-        z_m = z_m.view(K, len(xm), B, -1)  # (K, T + A - 1, B, 5)
-        belief = z_leaf[:, ::every]  # (K, T', B, 10)
-        t_ = belief.shape[1]
-        zz = []  # the predictor's input of every k: the belief and the command's code
-        for k in range(ahead):
-            zz.append(torch.cat([belief, z_m[:, k : k + T : every]], dim=-1))  # (K, T', B, 15)
-            if k + 1 < ahead:
-                flat = zz[-1].reshape(K, t_ * B, -1)
-                belief = belief + _chain(net, leaves, "transition", flat).view(K, t_, B, -1)
-        # every k's prediction in one pass: (K, A T' B, 15) -> (K, A, T', B, 5) ~ s_{t+k+1}
-        pred = _chain(net, leaves, "predictor", torch.stack(zz, 1).view(K, ahead * t_ * B, -1))
-        target = torch.stack([y[k : k + T : every] for k in range(ahead)])  # (A, T', B, 5)
-        err = (pred.view(K, ahead, t_, B, -1) - target).square().sum(-1) * weight  # (K, A, T', B)
-        count = weight.sum()
-        per_seed = err.sum((1, 2, 3))  # (K,)
-        (per_seed / count.clamp(min=1)).sum().backward()
-    for j, leaf in leaves.items():
-        if leaf.grad is None:  # the transition when A = 1: no gradient, as under autograd
-            grads[j].zero_()
-        else:
-            grads[j].copy_(leaf.grad)
-    dz = z_leaf.grad.reshape(K, n, -1)  # (K, TB, 10)
+    # the head, forward and backward by hand from the beliefs z_s
+    dz, per_seed = _head(net, z.view(K, T, B, -1), xm, y, weight, ahead, every)
+    dz = dz.view(K, n, -1)  # (K, TB, 10)
 
     # back through the memory by hand
     wi, bi = net.linear_index[i_out]
@@ -130,7 +147,7 @@ def forward_backward(
     wi, bi = net.linear_index[i_in]
     weight_grad(dpre, x_in, grads[wi])
     torch.sum(dpre, 1, keepdim=True, out=grads[bi])
-    return (carried(bufs), xm[T - 1].clone()), per_seed.detach(), count
+    return (carried(bufs), xm[T - 1].clone()), per_seed, weight.sum()
 
 
 def train_epoch_stacked_open_loop(
