@@ -74,11 +74,17 @@ def train_split(n: int, device: str = "cpu") -> tuple[torch.Tensor, torch.Tensor
 def train_flops(kind: str) -> float:
     """Floating-point operations of one training sample (one step of one stream): 6 per
     multiply-add of the forward pass (2 forward, 4 backward: the input's and the weight's
-    gradients). The element-wise work (gates, activations, Adam) is not counted."""
+    gradients). The element-wise work (gates, activations, Adam) is not counted. A motor
+    memory's open-loop head predicts ``ahead`` readings from every ``ahead_every``-th step: its
+    predictor runs ahead / every times a sample, its transition (ahead - 1) / every times."""
+    c = TrainConfig.of(kind)
+    repeats = {"predictor": c.ahead / c.ahead_every, "transition": (c.ahead - 1) / c.ahead_every}
+    model = build_model(kind)
     macs = 0
-    for mod in build_model(kind).modules():
+    for name, mod in model.named_modules():
         if isinstance(mod, nn.Linear):
-            macs += mod.in_features * mod.out_features
+            times = repeats.get(name.split(".")[0], 1) if model.config.motor_memory else 1
+            macs += mod.in_features * mod.out_features * times
         elif isinstance(mod, nn.LSTM):
             h = mod.hidden_size
             for layer in range(mod.num_layers):
