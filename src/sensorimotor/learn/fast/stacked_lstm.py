@@ -149,6 +149,26 @@ def step_product(x, t, w, out):
 
 
 @numba.njit(cache=True, **_FAST)
+def layer_forward_small(act, w_t, bias, scale, hs, cs, tc, rec):
+    """Every step of a chunk forward (``step_product``, then ``cell_forward``) in one call at a
+    few streams, where the calls of two kernels a step cost more than their arithmetic:
+    w_t (K, H, 4H) is W_hh^T, rec (K, B, 4H) scratch; the other arguments as ``cell_forward``'s."""
+    for t in range(act.shape[1]):
+        step_product(hs, t, w_t, rec)  # h_{t-1} = hs[:, t]
+        cell_forward(act, rec, bias, scale, hs, cs, tc, t)
+
+
+@numba.njit(cache=True, **_FAST)
+def layer_backward_small(dh, rec, act, cs, tc, dc, da, db, w):
+    """Every step of a chunk backward (``cell_backward``, then ``step_product`` with W_hh
+    (K, 4H, H) into rec) in one call at a few streams, as ``layer_forward_small``."""
+    for t in range(act.shape[1] - 1, -1, -1):
+        cell_backward(dh, rec, act, cs, tc, dc, da, db, t)
+        if t:
+            step_product(da, t, w, rec)
+
+
+@numba.njit(cache=True, **_FAST)
 def layer_sequence(act, whh_t, bias, scale, h, c, hs):
     """One layer of every seed over a whole sequence of batch one, forward only: act (K, L,
     4H) holds x_t W_ih^T; h, c (K, H) the state, carried in place; writes h_t to hs (K, L, H).
@@ -333,13 +353,13 @@ def lstm_forward(net: StackedEncoders, bufs: _Buffers, x: torch.Tensor, state: S
             buf.cs[:, 0].copy_(state[layer][1])
         act_a, hs_a, cs_a, tc_a = buf.arrays
         whh_t = whh.mT
-        small = whh_t.contiguous().numpy() if B <= SMALL_STREAMS else None  # (K, H, 4H)
-        for t in range(T):
-            if small is None:
+        if B <= SMALL_STREAMS:
+            w_t = whh_t.contiguous().numpy()  # (K, H, 4H)
+            layer_forward_small(act_a, w_t, bias, bufs.scale, hs_a, cs_a, tc_a, rec_a)
+        else:
+            for t in range(T):
                 torch.bmm(buf.h_steps[t], whh_t, out=rec)  # (K, B, 4H)
-            else:
-                step_product(hs_a, t, small, rec_a)  # h_{t-1} = hs[:, t]
-            cell_forward(act_a, rec_a, bias, bufs.scale, hs_a, cs_a, tc_a, t)
+                cell_forward(act_a, rec_a, bias, bufs.scale, hs_a, cs_a, tc_a, t)
         inputs.append(buf.hs[:, 1:].reshape(K, n, -1))  # (K, TB, H), a view
     return inputs
 
@@ -366,13 +386,14 @@ def lstm_backward(
         rec_back.zero_()
         act_a, _, cs_a, tc_a = buf.arrays
         dh_a, db_a = dh4.numpy(), db.numpy()
-        small = whh.detach().numpy() if B <= SMALL_STREAMS else None  # (K, 4H, H)
-        for t in range(T - 1, -1, -1):
-            cell_backward(dh_a, rec_back_a, act_a, cs_a, tc_a, dc_a, da_a, db_a, t)
-            if t and small is None:
-                torch.bmm(bufs.da_steps[t], whh, out=rec_back)  # (K, B, H)
-            elif t:
-                step_product(da_a, t, small, rec_back_a)
+        if B <= SMALL_STREAMS:
+            w = whh.detach().numpy()  # (K, 4H, H)
+            layer_backward_small(dh_a, rec_back_a, act_a, cs_a, tc_a, dc_a, da_a, db_a, w)
+        else:
+            for t in range(T - 1, -1, -1):
+                cell_backward(dh_a, rec_back_a, act_a, cs_a, tc_a, dc_a, da_a, db_a, t)
+                if t:
+                    torch.bmm(bufs.da_steps[t], whh, out=rec_back)  # (K, B, H)
         weight_grad(da2, inputs[layer], grads[iwih])
         weight_grad(da2, buf.hs[:, :T].reshape(K, n, -1), grads[iwhh])
         grads[ibhh].copy_(grads[ibih])
