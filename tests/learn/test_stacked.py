@@ -191,6 +191,30 @@ def test_the_autograd_fallback_trains_what_the_stack_trains(square_db_path, tmp_
     assert _close(a, b, tol=1e-4)  # 250 steps on real data: 3e-5 seen
 
 
+@pytest.mark.parametrize("rows", [8, 600])  # 600: a tall batch, its weight gradient transposed
+def test_a_chain_applied_twice_adds_the_gradients_of_both(rows):
+    # Rec-SMA's head applies the predictor and the transition at every k (add=True)
+    model = build_model("sm", seed=0)
+    net = StackedEncoders.from_models([model])
+    g = torch.Generator().manual_seed(0)
+    xs = [torch.randn(1, rows, 15, generator=g) for _ in range(2)]
+    names = [n for n, _ in model.named_parameters() if n.startswith("predictor.")]
+    for name in names:
+        net.grads[net.index[name]].fill_(0.0)
+    for x in xs:
+        hs = net._forward(net.layers, "predictor", x)
+        dy = torch.linspace(-1, 1, hs[-1].numel()).view_as(hs[-1])
+        net._backward(net.layers, net.grads, "predictor", hs, dy, add=True)
+    sum(
+        (model.predictor(x[0]) * torch.linspace(-1, 1, rows * 5).view(rows, 5)).sum() for x in xs
+    ).backward()
+    params = dict(model.named_parameters())
+    for name in names:
+        mine, theirs = net.grads[net.index[name]][0].reshape(params[name].shape), params[name].grad
+        assert torch.allclose(mine, theirs, rtol=1e-4, atol=1e-5), name
+        assert theirs.abs().max() > 0
+
+
 def test_select_and_concat_keep_each_seed_state():
     nets = [StackedEncoders.from_models([build_model("sm", seed=sd)]) for sd in (0, 1, 2)]
     g = torch.Generator().manual_seed(2)
