@@ -174,7 +174,9 @@ def _walls(db: Database):
     return db.world if db.has_walls else None
 
 
-def _check_same_layout(fit_db: Database, db: Database) -> None:
+def check_same_layout(fit_db: Database, db: Database) -> None:
+    """Refuse, in one line, two databases whose lasers differ: a representation (or a map)
+    fitted on one means nothing on the other."""
     a, b = fit_db.meta.get("sensor_layout"), db.meta.get("sensor_layout")
     if a and b and a != b:
         raise InputError(f"{db.source}: sensor layout {b} differs from {fit_db.source}'s {a}")
@@ -193,7 +195,7 @@ def load_inputs(run, data, fit_data, out, outputs: tuple[str, ...]):
     else:
         run = RAW
     if fit_db is not None:
-        _check_same_layout(fit_db, db)
+        check_same_layout(fit_db, db)
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise InputError(f"{out}: is a file, not an output folder")

@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sensorimotor.analysis.analyze import RAW, _check_same_layout, load_inputs, representation_of
+from sensorimotor.analysis.analyze import RAW, check_same_layout, load_inputs, representation_of
 from sensorimotor.analysis.clusters import N_CLUSTERS, assign_clusters, fit_kmeans
 from sensorimotor.analysis.map.baselines import baselines
 from sensorimotor.analysis.map.ceilings import NO_CEILING, ceilings, true_pose_planning
@@ -171,7 +171,7 @@ def fresh_database(path: str | Path, db: Database, k: int) -> Database:
     sensors and behaviour as ``db`` (the map's places, cells and actions must mean the same)."""
     fresh = load_database(path)
     _check_length(fresh, "test", k)
-    _check_same_layout(db, fresh)
+    check_same_layout(db, fresh)
     for what, ok in (
         ("world", fresh.meta.get("world") == db.meta.get("world")),
         ("behaviour", fresh.behaviour == db.behaviour),

@@ -36,7 +36,10 @@ def weight_grad(dy: torch.Tensor, h: torch.Tensor, out: torch.Tensor, add: bool 
     one, and the copy into out costs little."""
     if h.shape[-1] < NARROW <= dy.shape[-1] or (h.shape[-2] >= TALL and h.shape[-1] < dy.shape[-1]):
         g = torch.bmm(h.mT, dy).mT
-        out.add_(g) if add else out.copy_(g)
+        if add:
+            out.add_(g)
+        else:
+            out.copy_(g)
     elif add:
         out.add_(torch.bmm(dy.mT, h))
     else:

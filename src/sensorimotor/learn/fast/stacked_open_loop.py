@@ -78,7 +78,9 @@ def _head(
         diff = hp[-1] - y[k : k + T : every].reshape(1, rows, -1)  # ~ s_{t+k+1}
         wd = diff * weight[k].reshape(1, rows, 1)
         per_seed += (wd * diff).sum((1, 2))
-        dzz.append(net._backward(plan, grads, "predictor", hp, wd.mul_(scale), True, add=True))
+        dzz.append(
+            net._backward(plan, grads, "predictor", hp, wd.mul_(scale), input_grad=True, add=True)
+        )
         if k + 1 < ahead:
             trans.append(net._forward(plan, "transition", zz))  # [zz, (K, T'B, 64), (K, T'B, 10)]
             belief = belief + trans[-1][-1]  # the belief after m_{t+k}
@@ -87,7 +89,7 @@ def _head(
     for k in range(ahead - 1, -1, -1):
         d = dzz[k]  # (K, T'B, 15)
         if g is not None:  # belief_{k+1} = belief_k + transition(zz_k)
-            d = d + net._backward(plan, grads, "transition", trans[k], g, True, add=True)
+            d = d + net._backward(plan, grads, "transition", trans[k], g, input_grad=True, add=True)
             d[..., :zs] += g
         g = d[..., :zs]
         dzm[:, k : k + T : every] += d[..., zs:].reshape(K, t_, B, -1)
