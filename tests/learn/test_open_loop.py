@@ -65,12 +65,14 @@ def test_open_loop_needs_a_transition_and_has_a_bound():
         TrainConfig(model="rec-sm", ahead=4)
     with pytest.raises(InputError, match="at most"):
         TrainConfig(model=REC_SMA, ahead=10_000)
+    with pytest.raises(InputError, match="ahead_every must be at most the horizon"):
+        TrainConfig.of(REC_SMA, ahead_every=257)
     config = TrainConfig.of(REC_SMA)
     assert (config.horizon, config.ahead) == (256, 32)  # the kind's own, over the paper's
     assert TrainConfig.of(REC_SMA, ahead=1).ahead == 1  # a setting over the kind's
     assert TrainConfig.of("rec-sm") == TrainConfig(model="rec-sm")
-    config, sizes = apply_settings(config, ["memory_motors=false", "ahead=8"])
-    assert config.ahead == 8
+    config, sizes = apply_settings(config, ["memory_motors=false", "ahead=8", "ahead_every=1"])
+    assert (config.ahead, config.ahead_every) == (8, 1)  # the K = 1 ablation's two settings
     assert sizes.memory_motors is False
     with pytest.raises(InputError, match="true or false"):
         apply_settings(config, ["memory_motors=no"])

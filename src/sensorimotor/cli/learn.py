@@ -25,8 +25,8 @@ from sensorimotor.learn.kinds import S
 from sensorimotor.sim import MAX_SEED
 
 SET_HELP = (
-    "A setting KEY=VALUE, repeatable: lr, batch_size, horizon, ahead (rec-sma), patience, "
-    "min_ratio; a model size: z_sensors, z_motors, rec_hidden, lstm_size, lstm_layers, "
+    "A setting KEY=VALUE, repeatable: lr, batch_size, horizon, ahead and ahead_every (rec-sma), "
+    "patience, min_ratio; a model size: z_sensors, z_motors, rec_hidden, lstm_size, lstm_layers, "
     "predictor_hidden, transition_hidden; or memory_motors=false (rec-sma's ablation)."
 )
 

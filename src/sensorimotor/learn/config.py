@@ -88,6 +88,11 @@ class TrainConfig:
             )
         if self.ahead > MAX_AHEAD:
             raise InputError(f"TrainConfig.ahead must be at most {MAX_AHEAD}, got {self.ahead}")
+        if self.ahead_every > self.horizon:  # a window's first step always starts one
+            raise InputError(
+                f"TrainConfig.ahead_every must be at most the horizon ({self.horizon}), "
+                f"got {self.ahead_every}"
+            )
 
     @classmethod
     def of(cls, model: str, **settings) -> TrainConfig:

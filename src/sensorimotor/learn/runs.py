@@ -49,7 +49,7 @@ class Optimizer(Protocol):
     def load_state_dict(self, state: dict) -> None: ...
 
 
-SETTABLE = ("lr", "batch_size", "horizon", "ahead", "patience", "min_ratio")
+SETTABLE = ("lr", "batch_size", "horizon", "ahead", "ahead_every", "patience", "min_ratio")
 """TrainConfig settings that ``train --set KEY=VALUE`` changes (the others have options)."""
 SIZES = (
     "z_sensors",
