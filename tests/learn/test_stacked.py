@@ -21,7 +21,7 @@ from sensorimotor.learn.engine import train_epoch_feedforward
 from sensorimotor.learn.evaluate import load_run, model_error, split_tensors
 from sensorimotor.learn.fast.adam import FusedAdam
 from sensorimotor.learn.fast.stacked import StackedEncoders, train_epoch_stacked
-from sensorimotor.learn.models import KINDS, build_model, paper_kinds
+from sensorimotor.learn.models import KINDS, ModelConfig, build_model, paper_kinds
 from sensorimotor.learn.runs import run_name
 from sensorimotor.learn.train import train, train_runs, train_seeds
 from sensorimotor.sim.database import load_database
@@ -123,6 +123,26 @@ def test_the_stack_computes_what_models_py_computes():
     assert train_mod.trains_stacked("sm", "cpu")
     # a memory that reads the commands, with its open-loop head: fast.stacked_open_loop
     assert all(check.computes_models_py(k) for k in KINDS if KINDS[k].motor_memory)
+
+
+def test_other_sizes_and_the_ablation_train_stacked_once_checked(
+    square_db_path, tmp_path, monkeypatch
+):
+    configs = [
+        ModelConfig("sm", z_sensors=6, ff_hidden=(8, 16)),
+        ModelConfig("rec-sm", lstm_size=12, lstm_layers=2),
+        ModelConfig("rec-sma", memory_motors=False),  # the ablation: zeros into the memory
+    ]
+    assert all(train_mod.trains_stacked(c, "cpu") for c in configs)
+    engines = []
+    epochs = train_mod._epochs
+    monkeypatch.setattr(
+        train_mod, "_epochs", lambda *a: engines.append(a[3].__name__) or epochs(*a)
+    )
+    config = TrainConfig(model="sm", max_epochs=1)
+    train_runs(square_db_path, [(0, tmp_path / "a")], config, model=configs[0])
+    assert engines == ["StackedEngine"]
+    assert load_run(tmp_path / "a").model.config.z_sensors == 6
 
 
 def test_a_model_edited_in_models_py_trains_as_edited_with_autograd(

@@ -109,12 +109,14 @@ def check_seeds(seeds: Sequence[int]) -> list[int]:
     return seeds
 
 
-def trains_stacked(model: str, device: str) -> bool:
-    """Whether ``model`` trains on ``device`` ("auto", "cpu", "cuda") with the stacked engine:
-    every model but the recurrent ones on CUDA (the stacked LSTM's kernels are CPU code), as
-    long as the stack computes what ``models.py`` does (``computes_models_py``)."""
+def trains_stacked(model: ModelConfig | str, device: str) -> bool:
+    """Whether ``model`` (a kind, or its sizes and switches) trains on ``device`` ("auto",
+    "cpu", "cuda") with the stacked engine: every model but the recurrent ones on CUDA (the
+    stacked LSTM's kernels are CPU code), as long as the stack computes what ``models.py``
+    does for it (``computes_models_py``)."""
+    config = ModelConfig(kind=model) if isinstance(model, str) else model
     on_cpu = resolve_device(device) == "cpu"
-    return (on_cpu or not ModelConfig(kind=model).recurrent) and computes_models_py(model)
+    return (on_cpu or not config.recurrent) and computes_models_py(config)
 
 
 @dataclass
@@ -148,8 +150,7 @@ def train_runs(
     seeds share the call. With ``resume``, each run continues from its checkpoint; seeds left
     at different epochs (a kill between two seeds' checkpoints) train in separate engines,
     the lagging one first, and merge once caught up. ``model``: the encoder's sizes (default:
-    the paper's ``config.model``); other sizes train with autograd (the stacked passes are
-    checked on the paper's).
+    the paper's ``config.model``), stacked where the stacked passes are checked to compute it.
     """
     if isinstance(data, (str, Path, Database)):
         data = [data] * len(runs)
@@ -160,11 +161,10 @@ def train_runs(
     split_of = [files.index(p) for p in paths]
     device = resolve_device(config.device)
     config = replace(config, device=device)
-    paper = ModelConfig(kind=config.model)
-    model_config = paper if model is None else model
+    model_config = ModelConfig(kind=config.model) if model is None else model
     if model_config.kind != config.model:
         raise ValueError(f"a {model_config.kind} model for TrainConfig.model {config.model}")
-    stacked = model_config == paper and trains_stacked(config.model, device)
+    stacked = trains_stacked(model_config, device)
     if stacked and model_config.recurrent and len(files) > 1:
         raise ValueError("a recurrent stack trains on one database")
     seeds = [int(seed) for seed, _ in runs]

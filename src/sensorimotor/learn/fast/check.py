@@ -12,7 +12,7 @@ import torch
 from sensorimotor.learn.fast.stacked import StackedEncoders
 from sensorimotor.learn.fast.stacked_lstm import forward_backward as recurrent_forward_backward
 from sensorimotor.learn.fast.stacked_open_loop import forward_backward as open_loop_forward_backward
-from sensorimotor.learn.models import SensorimotorEncoder, build_model
+from sensorimotor.learn.models import ModelConfig, SensorimotorEncoder, build_model
 
 _KNOWN_LAYERS = (torch.nn.Sequential, torch.nn.Linear, torch.nn.ReLU, torch.nn.LSTM)
 
@@ -37,9 +37,10 @@ def _known_layers(module: SensorimotorEncoder) -> bool:
 
 
 @functools.cache
-def computes_models_py(model: str) -> bool:
+def computes_models_py(model: ModelConfig | str) -> bool:
     """Whether the stack's hand-written passes compute what ``models.py`` computes for
-    ``model``, checked once per process: its layers are those the passes know
+    ``model`` (a kind: the paper's sizes; or any sizes and switches), checked once per
+    process and model: its layers are those the passes know
     (``_known_layers``), and two steps (recurrent: two chunks, the state carried) give the
     loss and every gradient of autograd through the ``nn.Module``, to float32 rounding, on
     inputs ten times wider than the data's so that activations leave the range a fresh model
