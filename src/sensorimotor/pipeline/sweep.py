@@ -23,8 +23,7 @@ A sweep file (TOML) names the database, the settings held fixed and those search
 
 Searchable: ``data`` (the training world, and with it the sensor layout), the training
 settings ``model seed lr batch_size horizon patience min_ratio max_epochs`` and the model's
-sizes ``z_sensors z_motors rec_hidden lstm_size lstm_layers predictor_hidden`` (a model of
-other sizes than the paper's trains with autograd). Trials are drawn
+sizes ``z_sensors z_motors rec_hidden lstm_size lstm_layers predictor_hidden``. Trials are drawn
 here, from the file alone, so that both backends run the same trials: ``OUT/runs/trial_NNN``
 trained by ``learn.train.train``. ``--backend local`` runs them through the local workers, each
 to its end; ``--backend ray`` through Ray Tune, whose ASHA scheduler stops the trials whose
