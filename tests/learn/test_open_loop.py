@@ -110,7 +110,9 @@ def test_rec_sma_trains_the_same_bytes_for_a_seed_and_resumes_a_run_of_an_older_
     )
     run = load_run(a.run_dir)
     s, m = split_tensors(load_database(square_db_path), "val")
-    assert a.best_val_error == pytest.approx(float(ahead_errors(run.model, s, m, 8).mean()), rel=1e-5)
+    assert a.best_val_error == pytest.approx(
+        float(ahead_errors(run.model, s, m, 8).mean()), rel=1e-5
+    )
     # a run written before ahead and transition_hidden existed ran at their defaults
     rec_sm = train(square_db_path, tmp_path / "old", TrainConfig(model="rec-sm", max_epochs=1))
     cfg = rec_sm.run_dir / "config.json"
