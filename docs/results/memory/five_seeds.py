@@ -1,11 +1,12 @@
-"""The probes of five paper-scale seeds of Rec-SMA and of Rec-SM beside them (issue 32).
+"""The probes of paper-scale seeds of Rec-SMA, its ablations and Rec-SM side by side (issue 32).
 
-    python docs/results/memory/five_seeds.py SMA_PROBES REC_SM_PROBES
+    python docs/results/memory/five_seeds.py [LABEL=]PROBES [LABEL=]PROBES ...
 
-Each argument is a folder of ``s0`` .. ``s4`` folders written by ``sensorimotor analyze RUN
---data r1_fresh1.npz --out DIR/sN``. Prints the mean and Student-t 95 % interval of each probe
-beside the issue's goals (set before any Rec-SMA was trained). The seeds of the two kinds are
-independent models, so no difference is paired.
+Each PROBES is a folder of ``s0`` .. ``s4`` folders written by ``sensorimotor analyze RUN
+--data FRESH.npz --out PROBES/sN`` (LABEL: the column's name, default the folder's). Prints
+the mean and Student-t 95 % interval of each probe beside the issue's goals (set before any
+Rec-SMA was trained); a probe a world does not have (the room of Square) is left out. The
+seeds of two columns are independent models, so no difference is paired.
 """
 
 from __future__ import annotations
@@ -26,28 +27,36 @@ PROBES = {
 }
 
 
-def probe_values(folder: Path, path: tuple) -> list[float]:
+def probe_values(folder: Path, path: tuple) -> list[float] | None:
+    """The probe at ``path`` of every seed in ``folder``; None where the world has none."""
     out = []
     for seed in sorted(folder.glob("s[0-9]*")):
         value = json.loads((seed / "metrics.json").read_text())["probes"]
         for key in path:
-            value = value[key]
+            value = None if value is None else value[key]
+        if value is None:
+            return None
         out.append(float(value))
     return out
 
 
-def main(sma: Path, rec_sm: Path) -> None:
+def main(columns: dict[str, Path]) -> None:
     print(f"goals (THRESHOLDS, set before the data): {THRESHOLDS}")
-    print("| probe | Rec-SMA mean [t 95 %] | Rec-SM (strongest baseline) mean [t 95 %] |")
-    print("|---|---|---|")
+    print("| probe | " + " | ".join(f"{label} mean [t 95 %]" for label in columns) + " |")
+    print("|---|" + "---|" * len(columns))
     for name, path in PROBES.items():
-        a, b = probe_values(sma, path), probe_values(rec_sm, path)
         cells = []
-        for values in (a, b):
+        for folder in columns.values():
+            values = probe_values(folder, path)
+            if values is None:
+                break
             low, high = t_interval(values)
-            cells.append(f"{sum(values) / len(values):.3f} [{low:.3f}, {high:.3f}] (n = {len(values)})")
-        print(f"| {name} | " + " | ".join(cells) + " |")
+            mean = sum(values) / len(values)
+            cells.append(f"{mean:.3f} [{low:.3f}, {high:.3f}] (n = {len(values)})")
+        else:
+            print(f"| {name} | " + " | ".join(cells) + " |")
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]), Path(sys.argv[2]))
+    args = [a.partition("=") for a in sys.argv[1:]]
+    main({(label if sep else Path(label).name): Path(d or label) for label, sep, d in args})
