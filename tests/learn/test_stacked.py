@@ -493,3 +493,11 @@ def test_cli_seeds_of_a_recurrent_model_train_in_one_stack(square_db_path, tmp_p
     a = torch.load(out / "square__rec-s__s5" / "model.pt", weights_only=True)
     b = torch.load(tmp_path / "alone" / "model.pt", weights_only=True)
     assert _equal(a, b)
+
+
+def test_cli_header_says_a_model_of_other_sizes_trains_stacked(square_db_path, tmp_path, cli):
+    args = ["train", "rec-s", "--seeds", "0,1", "--data", square_db_path, "--out", tmp_path]
+    proc = cli(*args, "--set", "lstm_size=12", "--max-epochs", "1")
+    assert proc.returncode == 0, proc.stderr
+    assert "(seeds 0,1, stacked)" in proc.stderr.splitlines()[0]
+    assert load_run(tmp_path / "square__rec-s__s1").model.config.lstm_size == 12

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
@@ -23,6 +23,9 @@ from sensorimotor.cli.app import (
 from sensorimotor.errors import InputError
 from sensorimotor.learn.kinds import S
 from sensorimotor.sim import MAX_SEED
+
+if TYPE_CHECKING:
+    from sensorimotor.learn.models import ModelConfig
 
 SET_HELP = (
     "A setting KEY=VALUE, repeatable: lr, batch_size, horizon, ahead and ahead_every (rec-sma), "
@@ -108,9 +111,10 @@ def _parse_seeds(text: str) -> list[int]:
     return check_seeds(values)
 
 
-def _engine_note(model: str, device: str, single: bool) -> str:
-    """How the training header says the seeds train: stacked, or each with autograd (and
-    why, where ``models.py`` was edited into a model the stacked passes do not compute)."""
+def _engine_note(model: ModelConfig | str, device: str, single: bool) -> str:
+    """How the training header says the seeds of ``model`` (a kind, or a ModelConfig of its
+    sizes) train: stacked, or each with autograd (and why, where ``models.py`` was edited into
+    a model the stacked passes do not compute)."""
     from sensorimotor.learn.engine import computes_models_py
     from sensorimotor.learn.train import trains_stacked
 
@@ -118,7 +122,8 @@ def _engine_note(model: str, device: str, single: bool) -> str:
         return "" if single else ", stacked"
     if computes_models_py(model):
         return ", with autograd"
-    return f", with autograd: models.py's {model} is not what the stacked passes compute"
+    kind = getattr(model, "kind", model)
+    return f", with autograd: models.py's {kind} is not what the stacked passes compute"
 
 
 def epoch_line(
@@ -155,7 +160,7 @@ def _train(model, data: Path, out: Path, config, seeds: list[int], note, resume,
     def on_epoch(seed, r, stopper) -> None:
         if not started:  # the header waits for the first epoch: input errors stay one line
             started.append(True)
-            how = _engine_note(model, config.device, single)
+            how = _engine_note(sizes or model, config.device, single)
             err_console.print(f"training {KINDS[model].label} on {data} ({note}{how}) -> {out}")
             err_console.print(
                 f"early stopping: * an improvement (val below {config.min_ratio:g} x the last "
