@@ -3,12 +3,13 @@
 
     python docs/results/memory/square_symmetry.py square_fresh1.npz
 
-Square is its outer walls alone, so a rotation by a quarter turn about its centre, or a
-mirror through it, maps a trajectory onto another that the sensors and the behaviour make
-just as likely. A representation of the readings and commands can then hold the pose only up
-to those 8 maps. This probes the pose brought into one eighth of the square (u >= v >= 0 about
-the centre, the heading moved with it): the most such a representation can hold, through the
-same probes as ``experiments.memory.probe_job``'s true-pose ceiling.
+Square is its outer walls alone, so a quarter turn about its centre maps a trajectory onto
+another that the sensors and the behaviour (which reads only the readings) make just as
+likely. A representation of the readings and commands, from a memory that starts at the
+split's start, can then hold the pose only up to those 4 turns. This probes the pose turned
+into one quarter of the square (u >= |v| about the centre, the heading turned with it): the
+most such a representation can hold, through the same probes as
+``experiments.memory.probe_job``'s true-pose ceiling.
 """
 
 from __future__ import annotations
@@ -23,15 +24,13 @@ from sensorimotor.sim.database import load_database
 
 
 def canonical(poses: np.ndarray, size: float) -> np.ndarray:
-    """(N, 4): x, y, cos, sin of each pose mapped by the square's symmetry into u >= v >= 0."""
+    """(N, 4): x, y, cos, sin of each pose turned about the square's centre into u >= |v|."""
     u, v, h = poses[:, 0] - size / 2, poses[:, 1] - size / 2, poses[:, 2]
     best = np.full((len(poses), 3), np.nan)
-    for mirror in (False, True):
-        uu, vv, hh = (u, -v, -h) if mirror else (u, v, h)
-        for _ in range(4):  # quarter turns: (u, v, h) -> (-v, u, h + pi / 2)
-            uu, vv, hh = -vv, uu, hh + np.pi / 2
-            inside = (uu >= vv) & (vv >= 0)
-            best[inside] = np.stack([uu, vv, hh], axis=1)[inside]
+    for _ in range(4):  # quarter turns: (u, v, h) -> (-v, u, h + pi / 2)
+        u, v, h = -v, u, h + np.pi / 2
+        inside = u >= np.abs(v)
+        best[inside] = np.stack([u, v, h], axis=1)[inside]
     x, y, h = best[:, 0] + size / 2, best[:, 1] + size / 2, best[:, 2]
     return np.stack([x, y, np.cos(h), np.sin(h)], axis=1)
 
