@@ -30,7 +30,10 @@ PROBES = {
 def probe_values(folder: Path, path: tuple) -> list[float] | None:
     """The probe at ``path`` of every seed in ``folder``; None where the world has none."""
     out = []
-    for seed in sorted(folder.glob("s[0-9]*")):
+    seeds = sorted(folder.glob("s[0-9]*"))
+    if len(seeds) < 2:
+        raise SystemExit(f"{folder}: fewer than 2 seed folders s0, s1, ...")
+    for seed in seeds:
         value = json.loads((seed / "metrics.json").read_text())["probes"]
         for key in path:
             value = None if value is None else value[key]
@@ -58,5 +61,5 @@ def main(columns: dict[str, Path]) -> None:
 
 
 if __name__ == "__main__":
-    args = [a.partition("=") for a in sys.argv[1:]]
-    main({(label if sep else Path(label).name): Path(d or label) for label, sep, d in args})
+    args = [a.rpartition("=") for a in sys.argv[1:]]
+    main({(label if sep else Path(d).name): Path(d) for label, sep, d in args})
