@@ -20,19 +20,19 @@ import sys
 import numpy as np
 
 from sensorimotor.analysis.probes import place_probes
+from sensorimotor.experiments.memory import pose_features
 from sensorimotor.sim.database import load_database
 
 
 def canonical(poses: np.ndarray, size: float) -> np.ndarray:
-    """(N, 4): x, y, cos, sin of each pose turned about the square's centre into u >= |v|."""
+    """(N, 3) each pose (x, y, heading) turned about the square's centre into u >= |v|."""
     u, v, h = poses[:, 0] - size / 2, poses[:, 1] - size / 2, poses[:, 2]
     best = np.full((len(poses), 3), np.nan)
     for _ in range(4):  # quarter turns: (u, v, h) -> (-v, u, h + pi / 2)
         u, v, h = -v, u, h + np.pi / 2
         inside = u >= np.abs(v)
-        best[inside] = np.stack([u, v, h], axis=1)[inside]
-    x, y, h = best[:, 0] + size / 2, best[:, 1] + size / 2, best[:, 2]
-    return np.stack([x, y, np.cos(h), np.sin(h)], axis=1)
+        best[inside] = np.stack([u + size / 2, v + size / 2, h], axis=1)[inside]
+    return best
 
 
 def main(data: str) -> None:
@@ -41,7 +41,7 @@ def main(data: str) -> None:
         raise SystemExit(f"{data}: not a square of outer walls alone")
     fit, test = db.take("train"), db.take("test")
     size = float(db.world.width)
-    z_fit, z = canonical(fit.poses, size), canonical(test.poses, size)
+    z_fit, z = (pose_features(canonical(q.poses, size)) for q in (fit, test))
     print(json.dumps(place_probes(z_fit, fit.poses, z, test.poses, world_size=(size, size))))
 
 

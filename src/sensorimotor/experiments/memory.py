@@ -106,7 +106,7 @@ def probe_job(run: str, data: str, out: str, key: str) -> dict:
     if run == POSE:
         fit, test = db.take("train"), db.take("test")
         world = db.world
-        zf, z = _pose_features(fit.poses), _pose_features(test.poses)
+        zf, z = pose_features(fit.poses), pose_features(test.poses)
         rooms = [world.room_index(q[:, 0], q[:, 1]) for q in (fit.poses, test.poses)]
         size = (world.width, world.height)
         result["probes"] = place_probes(zf, fit.poses, z, test.poses, *rooms, size)
@@ -124,8 +124,8 @@ def probe_job(run: str, data: str, out: str, key: str) -> dict:
     return result
 
 
-def _pose_features(poses: np.ndarray) -> np.ndarray:
-    """(N, 4) x, y, cos(heading), sin(heading)."""
+def pose_features(poses: np.ndarray) -> np.ndarray:
+    """(N, 4) x, y, cos(heading), sin(heading): the true pose as the probes' ceiling reads it."""
     q = np.asarray(poses, dtype=np.float64)
     return np.stack([q[:, 0], q[:, 1], np.cos(q[:, 2]), np.sin(q[:, 2])], axis=1)
 
