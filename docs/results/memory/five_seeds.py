@@ -12,8 +12,8 @@ probe of each column drawn, each seed a dot, the mean with its interval, the goa
 
 from __future__ import annotations
 
+import argparse
 import json
-import sys
 from pathlib import Path
 
 from sensorimotor.experiments.memory import THRESHOLDS
@@ -26,43 +26,49 @@ PROBES = {
     "median position error": ("position", "median_error"),
     "KNN-MSE": ("knn_mse", "value"),
 }
+ROOM = "room (balanced accuracy)"
 
 
-def probe_values(folder: Path, path: tuple) -> list[float] | None:
-    """The probe at ``path`` of every seed in ``folder``; None where the world has none."""
-    out = []
+def probe_table(folder: Path) -> dict[str, list[float]]:
+    """``{probe: [value of each seed]}`` of the seed folders in ``folder``, each metrics.json
+    read once; a probe the world has not (null) is left out."""
     seeds = sorted(folder.glob("s[0-9]*"))
     if len(seeds) < 2:
         raise SystemExit(f"{folder}: fewer than 2 seed folders s0, s1, ...")
-    for seed in seeds:
-        value = json.loads((seed / "metrics.json").read_text())["probes"]
-        for key in path:
-            value = None if value is None else value[key]
-        if value is None:
-            return None
-        out.append(float(value))
-    return out
+    probes = [json.loads((seed / "metrics.json").read_text())["probes"] for seed in seeds]
+    table = {}
+    for name, path in PROBES.items():
+        values = []
+        for value in probes:
+            for key in path:
+                value = None if value is None else value[key]
+            values.append(value)
+        if None not in values:
+            table[name] = [float(v) for v in values]
+    return table
 
 
-def main(columns: dict[str, Path]) -> None:
+def print_table(columns: dict[str, dict[str, list[float]]]) -> None:
     print(f"goals (THRESHOLDS, set before the data): {THRESHOLDS}")
     print("| probe | " + " | ".join(f"{label} mean [t 95 %]" for label in columns) + " |")
     print("|---|" + "---|" * len(columns))
-    for name, path in PROBES.items():
+    for name in PROBES:
+        if not all(name in table for table in columns.values()):
+            continue
         cells = []
-        for folder in columns.values():
-            values = probe_values(folder, path)
-            if values is None:
-                break
+        for table in columns.values():
+            values = table[name]
             low, high = t_interval(values)
             mean = sum(values) / len(values)
             cells.append(f"{mean:.3f} [{low:.3f}, {high:.3f}] (n = {len(values)})")
-        else:
-            print(f"| {name} | " + " | ".join(cells) + " |")
+        print(f"| {name} | " + " | ".join(cells) + " |")
 
 
 def plot_room(
-    columns: dict[str, Path], png: Path, ceiling: float | None = None, world: str = "rooms1"
+    columns: dict[str, dict[str, list[float]]],
+    png: Path,
+    ceiling: float | None = None,
+    world: str = "rooms1",
 ) -> None:
     """Each column's balanced room accuracy: the seeds (dots), the mean and its Student-t
     interval; the goal, chance and the ``ceiling`` as lines."""
@@ -72,8 +78,8 @@ def plot_room(
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(1.6 * len(columns) + 1.5, 3.6))
-    for i, folder in enumerate(columns.values()):
-        values = probe_values(folder, PROBES["room (balanced accuracy)"])
+    for i, table in enumerate(columns.values()):
+        values = table[ROOM]
         low, high = t_interval(values)
         mean = sum(values) / len(values)
         ax.plot([i - 0.15] * len(values), values, "o", color="0.5", markersize=4)
@@ -90,17 +96,20 @@ def plot_room(
     fig.savefig(png, dpi=120)
 
 
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("columns", nargs="+", metavar="[LABEL=]PROBES")
+    parser.add_argument("--png", type=Path, help="draw the room probe of each column here")
+    parser.add_argument("--ceiling", type=float, help="the true pose's room accuracy, a line")
+    args = parser.parse_args()
+    columns = {}
+    for column in args.columns:
+        label, _, folder = column.rpartition("=")  # a label may hold "=", a folder not
+        columns[label or Path(folder).name] = probe_table(Path(folder))
+    print_table(columns)
+    if args.png is not None:
+        plot_room(columns, args.png, args.ceiling)
+
+
 if __name__ == "__main__":
-    argv = sys.argv[1:]
-    options = {}
-    for flag in ("--png", "--ceiling"):
-        if flag in argv:
-            options[flag] = argv.pop(argv.index(flag) + 1)
-            argv.remove(flag)
-    png = Path(options["--png"]) if "--png" in options else None
-    args = [a.rpartition("=") for a in argv]
-    columns = {(label if sep else Path(d).name): Path(d) for label, sep, d in args}
-    main(columns)
-    if png is not None:
-        ceiling = float(options["--ceiling"]) if "--ceiling" in options else None
-        plot_room(columns, png, ceiling)
+    main()
