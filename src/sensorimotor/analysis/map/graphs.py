@@ -30,12 +30,9 @@ def networkx_or_refuse():
     return networkx
 
 
-def communities(
-    weights: np.ndarray, nodes: np.ndarray, seed: int, resolution: float = RESOLUTION
-) -> np.ndarray:
-    """(N,) Louvain community (at ``resolution``) of each node (-1 for those not in ``nodes``)
-    of the undirected graph whose edge i-j weighs ``weights[i, j] + weights[j, i]``
-    (``weights`` (N, N), dense or scipy sparse); numbered by smallest node."""
+def undirected(weights: np.ndarray, nodes: np.ndarray):
+    """The networkx graph on ``nodes`` whose edge i-j weighs ``weights[i, j] + weights[j, i]``
+    (``weights`` (N, N), dense or scipy sparse)."""
     from scipy.sparse import coo_matrix, triu
 
     nx = networkx_or_refuse()
@@ -48,10 +45,19 @@ def communities(
     for i, j, v in zip(w.row, w.col, w.data, strict=True):
         if v and keep[i] and keep[j]:
             graph.add_edge(int(i), int(j), weight=float(v))
+    return graph
+
+
+def communities(
+    weights: np.ndarray, nodes: np.ndarray, seed: int, resolution: float = RESOLUTION
+) -> np.ndarray:
+    """(N,) Louvain community (at ``resolution``) of each node (-1 for those not in ``nodes``)
+    of the ``undirected`` graph of ``weights``; numbered by smallest node."""
+    nx = networkx_or_refuse()
     found = nx.community.louvain_communities(
-        graph, weight="weight", resolution=resolution, seed=seed
+        undirected(weights, nodes), weight="weight", resolution=resolution, seed=seed
     )
-    label = np.full(w.shape[0], -1, dtype=np.int64)
+    label = np.full(weights.shape[0], -1, dtype=np.int64)
     for c, members in enumerate(sorted(found, key=min)):
         label[list(members)] = c
     return label
