@@ -16,7 +16,7 @@ import reference_chmm as reference
 from conftest import assert_one_line_error
 from sensorimotor.analysis.analyze import representation_of
 from sensorimotor.analysis.clusters import assign_clusters, fit_kmeans
-from sensorimotor.analysis.map import mapping, planning
+from sensorimotor.analysis.map import graphs, mapping, planning
 from sensorimotor.analysis.map.cells import (
     ACTION_NAMES,
     Steps,
@@ -291,6 +291,27 @@ def test_a_smaller_resolution_joins_communities_along_their_strongest_edges():
     assert four.tolist() == np.repeat(range(4), 3).tolist()
     pairs = communities(w, np.arange(12), seed=0, resolution=0.03)
     assert pairs.tolist() == np.repeat(range(2), 6).tolist()
+
+
+def test_communities_keep_the_louvain_run_of_highest_modularity():
+    """Five noisy groups on which Louvain's runs disagree (the best is not the first seed's):
+    ``communities`` keeps, of its ``runs`` seeds, the partition of highest modularity."""
+    nx = pytest.importorskip("networkx")
+    rng = np.random.default_rng(3)
+    group = np.repeat(np.arange(5), 8)
+    linked = rng.random((40, 40)) < np.where(group[:, None] == group[None, :], 0.5, 0.12)
+    w = rng.random((40, 40)) * linked
+    graph = graphs.undirected(w, np.arange(40))
+    kw = {"weight": "weight", "resolution": 1.0}
+
+    def modularity(label):
+        parts = [set(np.flatnonzero(label == c).tolist()) for c in range(label.max() + 1)]
+        return nx.community.modularity(graph, parts, **kw)
+
+    singles = [modularity(communities(w, np.arange(40), s, 1.0, runs=1)) for s in range(30, 40)]
+    assert max(singles) > singles[0] + 1e-3  # the first run is not the best: a choice is made
+    kept = communities(w, np.arange(40), 3, 1.0, runs=10)  # seeds 30..39
+    assert modularity(kept) == pytest.approx(max(singles), abs=1e-12)
 
 
 def test_goal_distances_follow_the_map_to_the_goal():

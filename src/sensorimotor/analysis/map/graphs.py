@@ -3,6 +3,8 @@ the adjusted Rand index against the rooms) and the networkx graphs written as Gr
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from sensorimotor.analysis.map.cells import ACTION_NAMES, CellGraph, Steps
@@ -16,6 +18,11 @@ from sensorimotor.sim.world import World
 # Rand index over both worlds among 1, 0.3, 0.1, 0.05, 0.03, 0.02, 0.01, 0.003 (1: 0.16,
 # 0.1: 0.49, 0.05: 0.75, 0.03: 0.70, 0.01: 0.69); not validated on the paper behaviour's maps.
 RESOLUTION = 0.05
+# Louvain's runs (its random order from seeds seed * RUNS ... seed * RUNS + RUNS - 1); the one of
+# highest modularity is kept. On the two validation maps above (rule in grid_planner.py
+# restarts, written before the run), the highest-modularity run of 10 scored adjusted Rand 0.655
+# and 0.911 where the median single run scored 0.652 and 0.899 (the runs 0.40 to 0.71 on Rooms1).
+RUNS = 10
 MAX_RESOLUTION = 100.0  # past it nearly every node is a community of its own
 
 
@@ -49,14 +56,26 @@ def undirected(weights: np.ndarray, nodes: np.ndarray):
 
 
 def communities(
-    weights: np.ndarray, nodes: np.ndarray, seed: int, resolution: float = RESOLUTION
+    weights: np.ndarray,
+    nodes: np.ndarray,
+    seed: int,
+    resolution: float = RESOLUTION,
+    runs: int = RUNS,
 ) -> np.ndarray:
     """(N,) Louvain community (at ``resolution``) of each node (-1 for those not in ``nodes``)
-    of the ``undirected`` graph of ``weights``; numbered by smallest node."""
+    of the ``undirected`` graph of ``weights``, from the run of highest modularity of ``runs``;
+    numbered by smallest node."""
     nx = networkx_or_refuse()
-    found = nx.community.louvain_communities(
-        undirected(weights, nodes), weight="weight", resolution=resolution, seed=seed
-    )
+    graph = undirected(weights, nodes)
+    if graph.number_of_edges() == 0:  # no modularity to compare: every run finds the nodes
+        runs = 1
+    found, best = None, -math.inf
+    for run in range(seed * runs, seed * runs + runs):
+        kw = {"weight": "weight", "resolution": resolution}
+        found_run = nx.community.louvain_communities(graph, seed=run, **kw)
+        q = nx.community.modularity(graph, found_run, **kw) if runs > 1 else 0.0
+        if q > best:
+            found, best = found_run, q
     label = np.full(weights.shape[0], -1, dtype=np.int64)
     for c, members in enumerate(sorted(found, key=min)):
         label[list(members)] = c

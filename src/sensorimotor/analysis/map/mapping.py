@@ -75,6 +75,7 @@ from sensorimotor.analysis.map.graphs import (
     networkx_or_refuse,
     rooms_from_graph,
 )
+from sensorimotor.analysis.map.graphs import RUNS as LOUVAIN_RUNS
 from sensorimotor.analysis.map.localisation import GRID, localisation
 from sensorimotor.analysis.map.planning import (
     GOAL_RADIUS,
@@ -320,6 +321,7 @@ def map_files(
             "pseudocount": pseudocount,
             "start": start,
             "louvain_resolution": resolution,
+            "louvain_runs": LOUVAIN_RUNS,
             "markov_smoothing": SMOOTHING,
             "grid": GRID,
         },
