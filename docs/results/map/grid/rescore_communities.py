@@ -15,10 +15,10 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from scipy import stats
 from sklearn.metrics import adjusted_rand_score
 
 from sensorimotor.analysis.map import graphs, mapping
+from sensorimotor.stats import t_interval
 
 CLONES = {"rooms1": 160, "rooms2": 200}  # as five_seeds was made (README, "Five seeds")
 
@@ -51,9 +51,8 @@ def rescore(data: Path, out: Path, spec: str) -> None:
 
 
 def mean_t(values: list[float]) -> str:
-    v = np.asarray(values)
-    half = stats.t.ppf(0.975, len(v) - 1) * v.std(ddof=1) / np.sqrt(len(v))
-    return f"{v.mean():.3f} [{v.mean() - half:.3f}, {v.mean() + half:.3f}]"
+    low, high = t_interval(values)
+    return f"{np.mean(values):.3f} [{low:.3f}, {high:.3f}]"
 
 
 def table(out: Path, shipped: Path) -> None:
