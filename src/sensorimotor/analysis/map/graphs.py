@@ -70,8 +70,8 @@ def communities(
     if graph.number_of_edges() == 0:  # no modularity to compare: every run finds the nodes
         runs = 1
     found, best = None, -math.inf
+    kw = {"weight": "weight", "resolution": resolution}
     for run in range(seed * runs, seed * runs + runs):
-        kw = {"weight": "weight", "resolution": resolution}
         found_run = nx.community.louvain_communities(graph, seed=run, **kw)
         q = nx.community.modularity(graph, found_run, **kw) if runs > 1 else 0.0
         if q > best:
