@@ -19,7 +19,8 @@ cloned HMM (``chmm.fit_chmm``), each clone split by the slow context (``context.
   a read-out that always names the biggest room scores no better than chance). Room numbers
   need a world whose file names its rooms; otherwise they are null ("n/a");
 - **rooms from the graph** (``graphs.rooms_from_graph``): Louvain communities (networkx, at
-  ``graphs.RESOLUTION``, set on validation maps) of the map's transition graph (Viterbi counts,
+  ``graphs.RESOLUTION``, set on validation maps; the run of highest modularity of
+  ``graphs.RUNS``) of the map's transition graph (Viterbi counts,
   both directions, all actions) and of the cell graph; adjusted Rand index of the community of
   each test step (its most probable state) against its room;
 - **planning** in the simulator (``planning.planning``): success rate of the map's planner
