@@ -1,6 +1,6 @@
 """The probes of paper-scale seeds of Rec-SMA, its ablations and Rec-SM side by side (issue 32).
 
-    python docs/results/memory/five_seeds.py [LABEL=]PROBES ... [--png FILE [--ceiling X]]
+    python docs/results/memory/five_seeds.py [LABEL=]PROBES ... [--png FILE [--ceiling X] [--world W]]
 
 Each PROBES is a folder of ``s0`` .. ``s4`` folders written by ``sensorimotor analyze RUN
 --data FRESH.npz --out PROBES/sN`` (LABEL: the column's name, default the folder's). Prints
@@ -17,6 +17,7 @@ import json
 from pathlib import Path
 
 from sensorimotor.experiments.memory import THRESHOLDS
+from sensorimotor.sim.world import load_world
 from sensorimotor.stats import t_interval
 
 PROBES = {
@@ -85,7 +86,7 @@ def plot_room(
         ax.plot([i - 0.15] * len(values), values, "o", color="0.5", markersize=4)
         ax.errorbar(i, mean, yerr=[[mean - low], [high - mean]], fmt="s", color="k", capsize=5)
     ax.axhline(THRESHOLDS["room"][world], color="tab:green", ls="--", label="goal (set before)")
-    ax.axhline(1 / 3, color="tab:red", ls=":", label="chance")
+    ax.axhline(1 / len(load_world(world).rooms), color="tab:red", ls=":", label="chance")
     if ceiling is not None:
         ax.axhline(ceiling, color="tab:blue", ls="-.", label="true pose (ceiling)")
     ax.set_xticks(range(len(columns)), list(columns), rotation=15, ha="right", fontsize=8)
@@ -101,6 +102,7 @@ def main() -> None:
     parser.add_argument("columns", nargs="+", metavar="[LABEL=]PROBES")
     parser.add_argument("--png", type=Path, help="draw the room probe of each column here")
     parser.add_argument("--ceiling", type=float, help="the true pose's room accuracy, a line")
+    parser.add_argument("--world", default="rooms1", choices=list(THRESHOLDS["room"]))
     args = parser.parse_args()
     columns = {}
     for column in args.columns:
@@ -108,7 +110,7 @@ def main() -> None:
         columns[label or Path(folder).name] = probe_table(Path(folder))
     print_table(columns)
     if args.png is not None:
-        plot_room(columns, args.png, args.ceiling)
+        plot_room(columns, args.png, args.ceiling, args.world)
 
 
 if __name__ == "__main__":
