@@ -126,6 +126,15 @@ def test_a_stratified_bootstrap_resamples_within_each_stratum():
         bootstrap_interval(values, strata=["a"])
 
 
+def test_wilson_interval_against_the_textbook():
+    # Newcombe (1998), table I: 81 of 263 -> 0.2553-0.3662; 0 of 10 -> 0-0.2775; 10 of 10 mirrors it
+    assert stats.wilson_interval(81, 263) == pytest.approx((0.2553, 0.3662), abs=5e-5)
+    assert stats.wilson_interval(0, 10) == pytest.approx((0.0, 0.2775), abs=5e-5)
+    assert stats.wilson_interval(10, 10) == pytest.approx((1 - 0.2775, 1.0), abs=5e-5)
+    with pytest.raises(ValueError, match="11 successes of 10 trials"):
+        stats.wilson_interval(11, 10)
+
+
 def test_iqm_on_known_arrays():
     assert iqm([1.0, 2.0, 3.0, 4.0, 100.0]) == 3.0  # the lowest and highest dropped
     assert iqm([4.0, 1.0, 3.0, 2.0]) == 2.5

@@ -14,7 +14,9 @@ One convention each:
   bytes) and ``interval``, which picks between them: **Student-t below 10 values, the bootstrap
   from 10 up** (a bootstrap of a handful of values only resamples what it saw and is too
   narrow; Agarwal et al., "Deep RL at the edge of the statistical precipice", 2021). ``iqm``:
-  the interquartile mean, rliable's aggregate.
+  the interquartile mean, rliable's aggregate. ``wilson_interval``: the interval of a share
+  of successes over independent trials (episodes, start/goal pairs), exact-coverage-like near
+  0 and 1 where the normal one collapses.
 - **verdicts**: ``Verdict`` records a claim, its threshold, its test, its numbers, whether it
   holds (None: not judged), and the threshold's provenance: ``BEFORE`` ("set before the
   data") or ``CHOSEN`` ("chosen on these data"), with ``where`` it was set (a file, a section,
@@ -146,6 +148,23 @@ def t_interval(values, confidence: float = CONFIDENCE) -> tuple[float, float] | 
     mean, sd = mean_sd(v)
     half = float(t.ppf(0.5 + confidence / 2, len(v) - 1)) * sd / math.sqrt(len(v))
     return mean - half, mean + half
+
+
+def wilson_interval(
+    successes: int, trials: int, confidence: float = CONFIDENCE
+) -> tuple[float, float]:
+    """Wilson's score ``confidence`` interval of a success rate ``successes / trials``."""
+    from scipy.stats import norm
+
+    if not 0 <= successes <= trials or trials < 1:
+        raise ValueError(f"wilson_interval: {successes} successes of {trials} trials")
+    z = float(norm.ppf(0.5 + confidence / 2))
+    p = successes / trials
+    centre = (p + z * z / (2 * trials)) / (1 + z * z / trials)
+    half = (
+        z / (1 + z * z / trials) * math.sqrt(p * (1 - p) / trials + z * z / (4 * trials * trials))
+    )
+    return max(0.0, centre - half), min(1.0, centre + half)
 
 
 def iqm(values) -> float:

@@ -56,6 +56,7 @@ def test_homing_trains_rec_sma_once_runs_the_grid_and_keeps_it(rooms1_db_path, t
     md = to_markdown(ex.sections(rep, {"homing": found}), tmp_path)
     assert "## Does an agent need a memory to come back?" in md
     assert "| pose+raw (ceiling) |" in md
+    assert "| pose (localised, no memory) |" in md
     assert "(strongest baseline)" in md
     guess = found["rl"]["no_memory"]  # rl.json's: the task's own memoryless baseline
     assert guess["resets"] == 1_000
