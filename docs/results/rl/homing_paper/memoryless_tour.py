@@ -13,7 +13,10 @@ true-pose planner's distances, walls kept at a distance):
 - `guess`: the same without touring (it stops after the first room): the hand-over bound of
   `envs.tasks.memoryless_bound`, played.
 
-`tour` against `told` is how much of the task a memory is needed for. Usage:
+`tour` against `told` is how much of the task a memory is needed for. It also counts what the
+hand-over guess wins on the 50 starts every agent is evaluated on (`rl.runner.evaluate`: 8
+environments seeded `EVAL_SEED + i`, 7, 7, 6, ... episodes each; no step draws a random
+number, so the starts do not depend on the policy). Usage:
 
     python docs/results/rl/homing_paper/memoryless_tour.py [--world rooms1] [--resets 1000] [--out tour.json]
 """
@@ -31,6 +34,7 @@ from scipy.sparse.csgraph import dijkstra
 from sensorimotor.analysis.map.ceilings import RESOLUTION, _cell_of, grid_graph
 from sensorimotor.envs.laser_world import MAX_TURN, WALL_MARGIN
 from sensorimotor.envs.tasks import HANDOVER_RESETS, HOMING_BUDGET, LaserTaskEnv, handovers
+from sensorimotor.rl.runner import EVAL_SEED
 from sensorimotor.sim import core as sim
 from sensorimotor.sim.world import point_in_polygon
 from sensorimotor.stats import wilson_interval
@@ -86,6 +90,18 @@ def play(env, order, dist, graph, shape, seed: int) -> bool:
     return False
 
 
+def evaluation_guess(world: str, likeliest: dict, episodes: int = 50, n_envs: int = 8) -> int:
+    """Episodes of the agents' evaluation that guessing the likeliest start room from the
+    hand-over room wins (the room guessed is the start room)."""
+    wins = 0
+    for i in range(n_envs):
+        env = LaserTaskEnv("homing", world)
+        for k in range(episodes // n_envs + (i < episodes % n_envs)):
+            env.reset(seed=EVAL_SEED + i if k == 0 else None)
+            wins += likeliest[env._room()][0] == env.start_room
+    return wins
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--world", default="rooms1")
@@ -113,6 +129,9 @@ def main() -> None:
         lo, hi = wilson_interval(wins, args.resets)
         result["success"][name] = {"rate": p, "wins": wins, "wilson_95": [lo, hi]}
         print(f"{name:6s} {p:.3f}  [Wilson 95 % {lo:.3f}, {hi:.3f}]  ({wins} of {args.resets})")
+    wins = evaluation_guess(args.world, likeliest)
+    result["evaluation_starts"] = {"episodes": 50, "guess_wins": wins}
+    print(f"the hand-over guess on the agents' 50 evaluation starts: {wins} of 50")
     result["seconds"] = round(time.time() - t0, 1)
     if args.out:
         with open(args.out, "w") as f:
