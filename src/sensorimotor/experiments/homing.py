@@ -116,19 +116,25 @@ def verdicts(rl: dict) -> list[Verdict]:
             f"{rl['eval_episodes']} episodes each; Student-t 95 % interval below 10 seeds")  # fmt: skip
     sma, raw, oracle = (res[f][HEADLINE] for f in (REC_SMA, "raw", ORACLE))
     gap = paired_difference(oracle["per_seed"], sma["per_seed"])
-    rows = [
+    rows = [  # (claim, threshold, numbers, margin: how far the mean is on the goal's side)
         ("Rec-SMA's agents come home", f"success >= {t['rec_sma']}", fmt_ci(sma),
-         sma["mean"] >= t["rec_sma"]),
+         sma["mean"] - t["rec_sma"]),
         ("Rec-SMA's agents come home nearly as often as the oracle's",
          f"oracle minus Rec-SMA <= {t['of_oracle']}, paired by seed", fmt_ci(gap, "+"),
-         gap["mean"] <= t["of_oracle"]),
+         t["of_oracle"] - gap["mean"]),
         ("an agent without memory does not", f"raw's success <= {t['raw']}", fmt_ci(raw),
-         raw["mean"] <= t["raw"]),
+         t["raw"] - raw["mean"]),
     ]  # fmt: skip
     return [
-        Verdict(claim, threshold, test, numbers, holds if judged else None, BEFORE, WHERE)
-        for claim, threshold, numbers, holds in rows
-    ]
+        Verdict(claim, threshold, test, f"{numbers}; {_by(margin)}",
+                margin >= 0 if judged else None, BEFORE, WHERE)
+        for claim, threshold, numbers, margin in rows
+    ]  # fmt: skip
+
+
+def _by(margin: float) -> str:
+    """How far the mean lies from its threshold, in the words of a verdict."""
+    return f"{margin:.2f} to spare" if margin >= 0 else f"missed by {-margin:.2f}"
 
 
 def _baseline(res: dict) -> str:
