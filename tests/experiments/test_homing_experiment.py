@@ -48,8 +48,11 @@ def test_homing_trains_rec_sma_once_runs_the_grid_and_keeps_it(rooms1_db_path, t
     assert seen[0] == f"train {REC_SMA} rooms1__{REC_SMA}__s0"  # in the reproduction's runs
     assert (tmp_path / "runs" / f"rooms1__{REC_SMA}__s0" / "model.pt").is_file()
     assert sorted(seen[1:]) == sorted(f"{f}__s0" for f in homing.FEATURES)
-    assert set(found["rl"]["results"]) == set(homing.FEATURES)
-    assert [v["holds"] for v in found["verdicts"]] == [None, None, None]  # one seed: not judged
+    assert list(found["worlds"]) == ["rooms1"]  # Rooms2 is not among the reproduction's worlds
+    got = found["worlds"]["rooms1"]
+    assert set(got["rl"]["results"]) == set(homing.FEATURES)
+    assert got["rl"]["world"] == "rooms1"
+    assert [v["holds"] for v in got["verdicts"]] == [None, None, None]  # one seed: not judged
     seen.clear()
     assert ex.run_experiment(ctx) == found
     assert seen == []  # nothing trained twice
@@ -58,15 +61,17 @@ def test_homing_trains_rec_sma_once_runs_the_grid_and_keeps_it(rooms1_db_path, t
     assert "| pose+raw (ceiling) |" in md
     assert "| pose (localised, no memory) |" in md
     assert "(strongest baseline)" in md
-    guess = found["rl"]["no_memory"]  # rl.json's: the task's own memoryless baseline
+    assert "### homing in rooms1" in md
+    guess = got["rl"]["no_memory"]  # rl.json's: the task's own memoryless baseline
     assert guess["resets"] == 1_000
-    assert f"| {guess['what']} | {guess['success']:.2f} |" in md
-    assert f"]({found['folder']}/rl.png)" in md
+    assert f"| {guess['what']}, 1,000 resets | {guess['success']:.2f} |" in md
+    assert f"]({got['folder']}/rl.png)" in md
 
 
-def test_homing_is_refused_in_one_line_without_rooms1(tmp_path):
-    with pytest.raises(InputError, match="needs the encoders trained on rooms1"):
+def test_homing_runs_in_the_worlds_with_rooms_and_is_refused_in_one_line_without(tmp_path):
+    with pytest.raises(InputError, match="needs the encoders trained on rooms1 or rooms2"):
         homing.check(_rep(tmp_path, {}, worlds=("square",)))
+    assert homing.worlds(_rep(tmp_path, {}, worlds=("rooms2", "square", "rooms1"))) == ["rooms1", "rooms2"]
 
 
 def _rl(scores: dict[str, list[float]]) -> dict:

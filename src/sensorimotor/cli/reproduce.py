@@ -73,8 +73,8 @@ def reproduce(
             "(Table I over wall layouts that fit the paper's sentences), real (a real robot's "
             "log and a real campus map), memory (Rec-SMA, a memory that reads the motor "
             "commands, and its ablations: do they know the room and the position?), homing "
-            "(PPO agents that must come back to a room they cannot see: raw, Rec-SM, Rec-SMA "
-            "and the oracle pose+raw), behaviour (Table I's ordering, the corner cell and the memory under a smooth "
+            "(PPO agents that must come back to a room they cannot see, in Rooms1 and Rooms2: "
+            "raw, Rec-SM, Rec-SMA, the pose alone and the oracle pose+raw), behaviour (Table I's ordering, the corner cell and the memory under a smooth "
             "random motion, on Square). Default: none."
         ),
     ] = None,
