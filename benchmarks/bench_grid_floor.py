@@ -1,0 +1,107 @@
+"""The arithmetic floor of the paper grid (issue 38): the least time this CPU needs for
+``reproduce --scale paper --seeds 5 --workers 2``'s trainings, whatever the implementation.
+
+Each kind's training costs its seed-epochs (the shipped paper-scale runs' ``history.csv``,
+``docs/results/runs``: early stopping decides them, a stacked seed leaves its stack when it
+stops) times 800,000 samples an epoch times its matrix-product flops a sample
+(``bench_train.train_flops``: element-wise work, validation, evaluation and analysis not
+counted). Divided by two cores at one thread's matrix-product peak, measured in this run in
+float32 (what training runs in) and in bfloat16 (the reduced precision the issue allows; on
+AVX512-BF16 or AMX hardware), it is a floor: no schedule and no kernel trains the grid faster
+in that precision. Beside each goal the share of the peak the grid would have to sustain.
+
+Run by hand: ``.venv/bin/python benchmarks/bench_grid_floor.py [--runs DIR] [--measured MIN]``
+(``--measured``: a timed grid's minutes, to print the share of the peak it reached).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import time
+from collections import defaultdict
+from pathlib import Path
+
+import torch
+from rich.console import Console
+from rich.table import Table
+
+from bench_train import NAMES, sgemm_peak, train_flops
+
+EPOCH_STEPS = 800_000  # train split of the paper's 1,000,000-step databases
+CORES = 2
+GOALS = {
+    "the paper's four kinds": (("s", "sm", "rec-s", "rec-sm"), 20.0),
+    "with Rec-SMA": (("s", "sm", "rec-s", "rec-sm", "rec-sma"), 30.0),
+}  # issue 38: minutes on the 2-core CPU
+
+
+def seed_epochs(runs: Path) -> dict[str, int]:
+    """Epochs trained by every shipped paper-scale seed, summed per kind (``world__kind__sN``)."""
+    out: dict[str, int] = defaultdict(int)
+    for history in sorted(runs.glob("*__*__s*/history.csv")):
+        kind = history.parent.name.split("__")[1]
+        with history.open() as f:
+            out[kind] += sum(1 for _ in csv.DictReader(f))
+    return dict(out)
+
+
+def bf16_peak(size: int = 1024, repeats: int = 5) -> float:
+    """FLOP/s of one thread's bfloat16 matrix product of square matrices (oneDNN/MKL)."""
+    a, b = torch.randn(size, size).bfloat16(), torch.randn(size, size).bfloat16()
+    torch.mm(a, b)
+    best = float("inf")
+    for _ in range(repeats):
+        t = time.perf_counter()
+        torch.mm(a, b)
+        best = min(best, time.perf_counter() - t)
+    return 2.0 * size**3 / best
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=Path, default=Path("docs/results/runs"))
+    parser.add_argument("--measured", type=float, default=None, help="a timed grid, minutes")
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    epochs = seed_epochs(args.runs)
+    if not epochs:
+        raise SystemExit(f"error: no run folders with a history.csv in {args.runs}")
+    peaks = {"float32": sgemm_peak(), "bfloat16": bf16_peak()}
+    console = Console(width=140)
+    console.print(
+        f"torch {torch.__version__}, {torch.backends.cpu.get_cpu_capability()}; one thread's "
+        f"matrix-product peak: float32 {peaks['float32'] / 1e9:.0f} GFLOP/s, "
+        f"bfloat16 {peaks['bfloat16'] / 1e9:.0f} GFLOP/s (measured now); runs from {args.runs}"
+    )
+    table = Table(title=f"Training flops of the paper grid and their floor on {CORES} cores")
+    for col in ("kind", "seed-epochs", "kFLOP a sample", "TFLOP", "float32 floor", "bf16 floor"):
+        table.add_column(col, justify="left" if col == "kind" else "right")
+    tflop = {}
+    for kind in NAMES:
+        if kind not in epochs:
+            continue
+        tflop[kind] = epochs[kind] * EPOCH_STEPS * train_flops(kind) / 1e12
+        floors = [f"{tflop[kind] * 1e12 / p / CORES / 60:.1f} min" for p in peaks.values()]
+        row = [NAMES[kind], f"{epochs[kind]:,}", f"{train_flops(kind) / 1e3:.1f}"]
+        table.add_row(*row, f"{tflop[kind]:.1f}", *floors)
+    console.print(table)
+    for name, (kinds, goal) in GOALS.items():
+        if not all(k in tflop for k in kinds):
+            continue
+        total = sum(tflop[k] for k in kinds) * 1e12
+        floor32, floor16 = (total / p / CORES / 60 for p in peaks.values())
+        console.print(
+            f"{name}: floor {floor32:.1f} min in float32 ({floor16:.1f} in bfloat16); the goal "
+            f"of {goal:.0f} min asks {floor32 / goal:.0%} of the float32 peak "
+            f"({floor16 / goal:.0%} of the bfloat16 one), sustained through every training"
+        )
+        if args.measured and kinds == GOALS["the paper's four kinds"][0]:
+            console.print(
+                f"  the timed grid, {args.measured:.1f} min, ran at {floor32 / args.measured:.0%} "
+                "of the float32 peak, its evaluation and analysis counted as time"
+            )
+
+
+if __name__ == "__main__":
+    main()
