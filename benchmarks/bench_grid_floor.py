@@ -10,6 +10,12 @@ float32 (what training runs in) and in bfloat16 (the reduced precision the issue
 AVX512-BF16 or AMX hardware), it is a floor: no schedule and no kernel trains the grid faster
 in that precision. Beside each goal the share of the peak the grid would have to sustain.
 
+Then what bfloat16 could buy the heaviest paper kind: every matrix product of a chunk of
+Rec-SM's stacked training (five seeds, 64 streams x 20 steps; shapes and calls from
+a wrapper of ``torch.bmm`` and ``torch.baddbmm``) timed alone, operands laid out as recorded, in float32 and in bfloat16, and the chunk's time if each ran in
+the faster of the two with its conversions free: an upper bound on the candidate, measured
+before writing it.
+
 Run by hand: ``.venv/bin/python benchmarks/bench_grid_floor.py [--runs DIR] [--measured MIN]``
 (``--measured``: a timed grid's minutes, to print the share of the peak it reached).
 """
@@ -21,12 +27,17 @@ import csv
 import time
 from collections import defaultdict
 from pathlib import Path
+from unittest import mock
 
 import torch
 from rich.console import Console
 from rich.table import Table
 
-from bench_train import NAMES, sgemm_peak, train_flops
+from bench_train import BATCH, HORIZON, NAMES, sgemm_peak, train_flops, train_split
+from sensorimotor.learn.fast.cpu import keep_freed_memory
+from sensorimotor.learn.fast.stacked import StackedEncoders
+from sensorimotor.learn.fast.stacked_lstm import train_epoch_stacked_recurrent
+from sensorimotor.learn.models import build_model
 
 EPOCH_STEPS = 800_000  # train split of the paper's 1,000,000-step databases
 CORES = 2
@@ -58,12 +69,104 @@ def bf16_peak(size: int = 1024, repeats: int = 5) -> float:
     return 2.0 * size**3 / best
 
 
+def best_time(fn, calls: int = 200, repeats: int = 5) -> float:
+    """Best seconds a call of ``fn`` over ``repeats`` runs of ``calls`` calls, after a warm-up."""
+    for _ in range(10):
+        fn()
+    best = float("inf")
+    for _ in range(repeats):
+        t = time.perf_counter()
+        for _ in range(calls):
+            fn()
+        best = min(best, (time.perf_counter() - t) / calls)
+    return best
+
+
+def chunk_products(kind: str = "rec-sm", k: int = 5, chunks: int = 50):
+    """A stacked chunk's seconds, and {(op, operands' shapes and strides): calls a chunk} of
+    its products, recorded by wrapping ``torch.bmm`` and ``torch.baddbmm`` for one epoch."""
+    s, m = train_split(BATCH * HORIZON * chunks)
+    net = StackedEncoders.from_models([build_model(kind, seed=sd) for sd in range(k)])
+    warm = 4 * BATCH * HORIZON + 1
+    train_epoch_stacked_recurrent(net, s[:warm], m[:warm], BATCH, HORIZON)
+    chunk = best_time(lambda: train_epoch_stacked_recurrent(net, s, m, BATCH, HORIZON), 1, 3)
+    calls: dict = defaultdict(float)
+
+    def recording(op):
+        def call(*args, **kwargs):
+            operands = tuple((tuple(a.shape), a.stride()) for a in args if torch.is_tensor(a))
+            calls[(op.__name__, operands)] += 1 / chunks
+            return op(*args, **kwargs)
+
+        return call
+
+    with (
+        mock.patch.object(torch, "bmm", recording(torch.bmm)),
+        mock.patch.object(torch, "baddbmm", recording(torch.baddbmm)),
+    ):
+        train_epoch_stacked_recurrent(net, s, m, BATCH, HORIZON)
+    return chunk / chunks, dict(calls)
+
+
+def product_seconds(op: str, operands, dtype: torch.dtype) -> float:
+    """One call of ``op`` on fresh operands of the recorded shapes and strides in ``dtype``."""
+    args = [
+        torch.randn(
+            1 + sum((n - 1) * d for n, d in zip(sh, st, strict=True)), dtype=dtype
+        ).as_strided(sh, st)
+        for sh, st in operands
+    ]  # a stride 0 (an operand broadcast over the seeds) stays one
+    fn = getattr(torch, op)
+    return best_time(lambda: fn(*args))
+
+
+def contiguous(shape: tuple[int, ...]) -> tuple[int, ...]:
+    """The strides of a contiguous tensor of ``shape``."""
+    return torch.empty(shape).stride()
+
+
+def bf16_bound(console: Console) -> None:
+    """The table of Rec-SM's chunk products in float32 and bfloat16, and the bound."""
+    chunk, calls = chunk_products()
+    table = Table(title="Rec-SM, 5 stacked seeds: the products of one chunk (64 x 20 steps)")
+    for col in (
+        "product",
+        "operands (T: not contiguous)",
+        "calls",
+        "float32 us",
+        "bfloat16 us",
+        "faster",
+    ):
+        table.add_column(
+            col, justify="right" if col in ("calls",) or "us" in col or col == "faster" else "left"
+        )
+    rows = []
+    for (op, shapes), n in calls.items():
+        a, b = (product_seconds(op, shapes, dt) for dt in (torch.float32, torch.bfloat16))
+        rows.append((n * a, op, shapes, n, a, b))
+    f32 = sum(r[0] for r in rows)
+    f16 = sum(n * min(a, b) for _, _, _, n, a, b in rows)
+    for _, op, shapes, n, a, b in sorted(rows, key=lambda r: -r[0]):
+        operands = " x ".join(
+            f"{list(sh)}{'' if st == contiguous(sh) else ' T'}" for sh, st in shapes
+        )
+        table.add_row(op, operands, f"{n:g}", f"{a * 1e6:.1f}", f"{b * 1e6:.1f}", f"{a / b:.2f}x")
+    console.print(table)
+    console.print(
+        f"a chunk {chunk * 1e3:.1f} ms, its products timed alone {f32 * 1e3:.1f} ms in float32, "
+        f"{f16 * 1e3:.1f} ms each in the faster precision: with free conversions at most "
+        f"{chunk / (chunk - f32 + f16):.2f}x on Rec-SM"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=Path, default=Path("docs/results/runs"))
     parser.add_argument("--measured", type=float, default=None, help="a timed grid, minutes")
     args = parser.parse_args()
     torch.set_num_threads(1)
+    torch.set_flush_denormal(True)  # as training runs (fast.cpu.flush_subnormals)
+    keep_freed_memory()
     epochs = seed_epochs(args.runs)
     if not epochs:
         raise SystemExit(f"error: no run folders with a history.csv in {args.runs}")
@@ -101,6 +204,7 @@ def main() -> None:
                 f"  the timed grid, {args.measured:.1f} min, ran at {floor32 / args.measured:.0%} "
                 "of the float32 peak, its evaluation and analysis counted as time"
             )
+    bf16_bound(console)
 
 
 if __name__ == "__main__":
