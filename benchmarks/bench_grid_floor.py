@@ -1,7 +1,7 @@
 """The arithmetic floor of the paper grid (issue 38): the least time this CPU needs for
 ``reproduce --scale paper --seeds 5 --workers 2``'s trainings, whatever the implementation.
 
-Each kind's training costs its seed-epochs (the shipped paper-scale runs' ``history.csv``,
+Each kind's training costs its seed-epochs (the shipped paper-scale runs' ``result.json``,
 ``docs/results/runs``: early stopping decides them, a stacked seed leaves its stack when it
 stops) times 800,000 samples an epoch times its matrix-product flops a sample
 (``bench_train.train_flops``: element-wise work, validation, evaluation and analysis not
@@ -23,8 +23,7 @@ Run by hand: ``.venv/bin/python benchmarks/bench_grid_floor.py [--runs DIR] [--m
 from __future__ import annotations
 
 import argparse
-import csv
-import time
+import json
 from collections import defaultdict
 from pathlib import Path
 from unittest import mock
@@ -33,7 +32,7 @@ import torch
 from rich.console import Console
 from rich.table import Table
 
-from bench_train import BATCH, HORIZON, NAMES, sgemm_peak, train_flops, train_split
+from bench_train import BATCH, HORIZON, NAMES, sgemm_peak, timed, train_flops, train_split
 from sensorimotor.learn.fast.cpu import keep_freed_memory
 from sensorimotor.learn.fast.stacked import StackedEncoders
 from sensorimotor.learn.fast.stacked_lstm import train_epoch_stacked_recurrent
@@ -48,38 +47,20 @@ GOALS = {
 
 
 def seed_epochs(runs: Path) -> dict[str, int]:
-    """Epochs trained by every shipped paper-scale seed, summed per kind (``world__kind__sN``)."""
+    """Epochs trained by every shipped paper-scale seed, summed per kind (each run folder's
+    ``config.json`` and ``result.json``)."""
     out: dict[str, int] = defaultdict(int)
-    for history in sorted(runs.glob("*__*__s*/history.csv")):
-        kind = history.parent.name.split("__")[1]
-        with history.open() as f:
-            out[kind] += sum(1 for _ in csv.DictReader(f))
+    for result in sorted(runs.glob("*/result.json")):
+        kind = json.loads((result.parent / "config.json").read_text())["model"]["kind"]
+        out[kind] += json.loads(result.read_text())["epochs"]
     return dict(out)
 
 
-def bf16_peak(size: int = 1024, repeats: int = 5) -> float:
-    """FLOP/s of one thread's bfloat16 matrix product of square matrices (oneDNN/MKL)."""
-    a, b = torch.randn(size, size).bfloat16(), torch.randn(size, size).bfloat16()
-    torch.mm(a, b)
-    best = float("inf")
-    for _ in range(repeats):
-        t = time.perf_counter()
-        torch.mm(a, b)
-        best = min(best, time.perf_counter() - t)
-    return 2.0 * size**3 / best
-
-
 def best_time(fn, calls: int = 200, repeats: int = 5) -> float:
-    """Best seconds a call of ``fn`` over ``repeats`` runs of ``calls`` calls, after a warm-up."""
+    """Best seconds a call of ``fn`` (``bench_train.timed`` over ``calls`` calls), warmed up."""
     for _ in range(10):
         fn()
-    best = float("inf")
-    for _ in range(repeats):
-        t = time.perf_counter()
-        for _ in range(calls):
-            fn()
-        best = min(best, (time.perf_counter() - t) / calls)
-    return best
+    return timed(lambda i: [fn() for _ in range(calls)], repeats)[0] / calls
 
 
 def chunk_products(kind: str = "rec-sm", k: int = 5, chunks: int = 50):
@@ -169,8 +150,8 @@ def main() -> None:
     keep_freed_memory()
     epochs = seed_epochs(args.runs)
     if not epochs:
-        raise SystemExit(f"error: no run folders with a history.csv in {args.runs}")
-    peaks = {"float32": sgemm_peak(), "bfloat16": bf16_peak()}
+        raise SystemExit(f"error: no run folders with a result.json in {args.runs}")
+    peaks = {"float32": sgemm_peak(), "bfloat16": sgemm_peak(dtype=torch.bfloat16)}
     console = Console(width=140)
     console.print(
         f"torch {torch.__version__}, {torch.backends.cpu.get_cpu_capability()}; one thread's "

@@ -92,12 +92,12 @@ def train_flops(kind: str) -> float:
     return 6.0 * macs
 
 
-def sgemm_peak(size: int = 1024, repeats: int = 5) -> float:
-    """FLOP/s of one thread's float32 matrix product (MKL through ``torch.mm``) on square
-    matrices large enough to run at the core's arithmetic speed: the reference the training
-    passes are measured against."""
-    a, b = torch.randn(size, size), torch.randn(size, size)
-    out = torch.empty(size, size)
+def sgemm_peak(size: int = 1024, repeats: int = 5, dtype: torch.dtype = torch.float32) -> float:
+    """FLOP/s of one thread's matrix product (MKL or oneDNN through ``torch.mm``; float32 unless
+    ``dtype``) on square matrices large enough to run at the core's arithmetic speed: the
+    reference the training passes are measured against."""
+    a, b = torch.randn(size, size, dtype=dtype), torch.randn(size, size, dtype=dtype)
+    out = torch.empty(size, size, dtype=dtype)
     torch.mm(a, b, out=out)
     best = min(timed(lambda i: torch.mm(a, b, out=out), repeats)[0] for _ in range(2))
     return 2.0 * size**3 / best
