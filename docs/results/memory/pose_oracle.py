@@ -107,6 +107,10 @@ def main() -> None:
     steps, every = TrainConfig.of(REC_SMA).ahead, TrainConfig.of(REC_SMA).ahead_every
     model = SensorimotorEncoder(config)
     db, fresh = load_database(args.train), load_database(args.fresh)
+    if db.world.name != fresh.world.name:  # the head is scored, and g probed, on FRESH's poses
+        raise SystemExit(
+            f"error: {args.fresh} is of {fresh.world.name}, {args.train} of {db.world.name}"
+        )
     if args.oracle == "pose":
         features, n_in = pose_features, 4
     else:
