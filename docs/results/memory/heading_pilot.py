@@ -11,6 +11,9 @@ carried, Adam 1e-3) on the prediction loss alone, its memory reading that headin
 readings (``--heading compass``: the true heading) or not (``--heading none``), and probes z_s
 with the issue's probes on ``FRESH`` (every ``--probe-every`` epochs too). Autograd, one seed, a
 fixed number of epochs: a pilot, not the kind's training.
+
+``--slow-dims D --slow-weight W`` adds a slowness prior (slow feature analysis, the robotic
+priors' temporal coherence): W times ``slowness`` of z_s's first D dimensions.
 """
 
 from __future__ import annotations
@@ -28,6 +31,16 @@ from sensorimotor.learn.models import REC_SMA, ModelConfig, build_model
 from sensorimotor.sim.database import load_database, scale_motors, scale_sensors
 
 
+def slowness(z: torch.Tensor) -> torch.Tensor:
+    """How fast the features z (B, T, D) change within each stream's window: every dimension's
+    mean squared step over its variance over the window within each stream, averaged over the
+    dimensions. Scale-free, and a constant (a latched value) earns nothing: its steps are as
+    large as its variation."""
+    steps = (z[:, 1:] - z[:, :-1]).square().mean((0, 1))  # (D,)
+    spread = z.var(dim=1, unbiased=False).mean(0)  # (D,): within each stream, then averaged
+    return (steps / (spread + 1e-4)).mean()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("train")
@@ -36,6 +49,8 @@ def main() -> None:
     ap.add_argument("--epochs", type=int, default=30)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--probe-every", type=int, default=0, help="probe every N epochs too")
+    ap.add_argument("--slow-dims", type=int, default=0, help="z_s dimensions under slowness")
+    ap.add_argument("--slow-weight", type=float, default=0.0, help="weight of their slowness")
     args = ap.parse_args()
     torch.manual_seed(args.seed)
     torch.set_num_threads(1)
@@ -64,17 +79,21 @@ def main() -> None:
             starts = torch.arange(i, j, every)
             truth = torch.stack([target[:, starts + step + 1] for step in range(k)])
             loss = ((pred - truth) ** 2).sum(-1).mean()
+            prediction = float(loss.detach())
+            if args.slow_dims:
+                loss = loss + args.slow_weight * slowness(z[..., : args.slow_dims])
             opt.zero_grad()
             loss.backward()
             opt.step()
             state = tuple(x.detach() for x in state)
-            total, count = total + float(loss.detach()) * (j - i), count + (j - i)
+            total, count = total + prediction * (j - i), count + (j - i)
         print(f"epoch {epoch + 1}: open-loop loss {total / count:.4f} ({time.time() - t0:.0f} s)",
               flush=True)
         if args.probe_every and (epoch + 1) % args.probe_every == 0 and epoch + 1 < args.epochs:
             print(json.dumps({"epoch": epoch + 1, "probes": probe(model, fresh, args.heading)}),
                   flush=True)
     print(json.dumps({"heading": args.heading, "epochs": args.epochs,
+                      "slow_dims": args.slow_dims, "slow_weight": args.slow_weight,
                       "probes": probe(model, fresh, args.heading)}))
 
 
