@@ -13,7 +13,9 @@ with the issue's probes on ``FRESH`` (every ``--probe-every`` epochs too). Autog
 fixed number of epochs: a pilot, not the kind's training.
 
 ``--slow-dims D --slow-weight W`` adds a slowness prior (slow feature analysis, the robotic
-priors' temporal coherence): W times ``slowness`` of z_s's first D dimensions.
+priors' temporal coherence): W times ``slowness`` of z_s's first D dimensions. The epochs then
+log the training windows' slowness of both parts of z_s, and the end probes each part alone and
+gives every dimension's slowness over the fresh test split's 256-step windows.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ import torch
 from pose_supervised import heading_probes, readings, streams, turned
 
 from sensorimotor.learn.config import TrainConfig
+from sensorimotor.learn.evaluate import run_model
 from sensorimotor.learn.models import REC_SMA, ModelConfig, build_model
 from sensorimotor.sim.database import load_database, scale_motors, scale_sensors
 
@@ -69,7 +72,7 @@ def main() -> None:
     length = memory_in.shape[1]
     draw = torch.Generator().manual_seed(args.seed)
     for epoch in range(args.epochs):
-        t0, state, total, count = time.time(), None, 0.0, 0
+        t0, state, total, count, parts = time.time(), None, 0.0, 0, [0.0, 0.0]
         if args.heading == "odometry":  # each stream's start heading drawn anew
             memory_in = turned(memory_in, torch.rand(n_streams, generator=draw) * 2 * math.pi)
         for i in range(0, length - k, horizon):
@@ -81,27 +84,53 @@ def main() -> None:
             loss = ((pred - truth) ** 2).sum(-1).mean()
             prediction = float(loss.detach())
             if args.slow_dims:
-                loss = loss + args.slow_weight * slowness(z[..., : args.slow_dims])
+                slow = slowness(z[..., : args.slow_dims])
+                loss = loss + args.slow_weight * slow
+                parts[0] += float(slow.detach()) * (j - i)
+                parts[1] += float(slowness(z.detach()[..., args.slow_dims :])) * (j - i)
             opt.zero_grad()
             loss.backward()
             opt.step()
             state = tuple(x.detach() for x in state)
             total, count = total + prediction * (j - i), count + (j - i)
-        print(f"epoch {epoch + 1}: open-loop loss {total / count:.4f} ({time.time() - t0:.0f} s)",
-              flush=True)
+        slow_log = (
+            f", slowness {parts[0] / count:.4f} (the other dimensions {parts[1] / count:.4f})"
+            if args.slow_dims
+            else ""
+        )
+        print(f"epoch {epoch + 1}: open-loop loss {total / count:.4f}{slow_log} "
+              f"({time.time() - t0:.0f} s)", flush=True)
         if args.probe_every and (epoch + 1) % args.probe_every == 0 and epoch + 1 < args.epochs:
             print(json.dumps({"epoch": epoch + 1, "probes": probe(model, fresh, args.heading)}),
                   flush=True)
-    print(json.dumps({"heading": args.heading, "epochs": args.epochs,
-                      "slow_dims": args.slow_dims, "slow_weight": args.slow_weight,
-                      "probes": probe(model, fresh, args.heading)}))
+    result = {"heading": args.heading, "epochs": args.epochs, "slow_dims": args.slow_dims,
+              "slow_weight": args.slow_weight, "probes": probe(model, fresh, args.heading)}
+    if args.slow_dims:
+        d = args.slow_dims
+        result |= {
+            "probes_slow_dims": probe(model, fresh, args.heading, slice(0, d)),
+            "probes_other_dims": probe(model, fresh, args.heading, slice(d, None)),
+            "test_slowness_per_dim": slowness_on_test(model, fresh, args.heading),
+        }
+    print(json.dumps(result))
 
 
-def probe(model, fresh, heading: str) -> dict:
-    """The issue's probes of z_s on ``fresh``, the model left in training mode after."""
+def slowness_on_test(model, fresh, heading: str, window: int = 256) -> list[float]:
+    """``slowness`` of each z_s dimension over the fresh test split, cut into windows."""
+    test = fresh.take("test")
+    with torch.no_grad():
+        s = torch.from_numpy(readings(test, fresh.max_range, heading))
+        z = run_model(model, s, torch.from_numpy(scale_motors(test.motors)))[1]
+    n = len(z) // window
+    z = z[: n * window].reshape(n, window, -1)  # (windows, 256, 10)
+    return [round(float(slowness(z[..., i : i + 1])), 5) for i in range(z.shape[-1])]
+
+
+def probe(model, fresh, heading: str, dims: slice = slice(None)) -> dict:
+    """The issue's probes of z_s (its ``dims``) on ``fresh``, the model left in training mode."""
     model.eval()
     with torch.no_grad():
-        probes = heading_probes(model, fresh, heading)
+        probes = heading_probes(model, fresh, heading, dims)
     model.train()
     return probes
 

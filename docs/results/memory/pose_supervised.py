@@ -82,14 +82,15 @@ def turned(s: torch.Tensor, angle: torch.Tensor) -> torch.Tensor:
     return torch.cat([s[..., :5], (c * cos - n * sin)[..., None], (n * cos + c * sin)[..., None]], -1)
 
 
-def heading_probes(model, fresh, heading: str) -> dict:
+def heading_probes(model, fresh, heading: str, dims: slice = slice(None)) -> dict:
     """``probe_places``' probes of a memory that reads a heading (its inputs are not a
-    database's readings, so ``probe_places`` cannot run it)."""
+    database's readings, so ``probe_places`` cannot run it); of z_s's ``dims`` only if given."""
     fit, test = fresh.take("train"), fresh.take("test")
 
     def z_of(part, steps=None):
         s = torch.from_numpy(readings(part, fresh.max_range, heading)[:steps])
-        return run_model(model, s, torch.from_numpy(scale_motors(part.motors[:steps])))[1].numpy()
+        z = run_model(model, s, torch.from_numpy(scale_motors(part.motors[:steps])))[1]
+        return z.numpy()[:, dims]
 
     z_fit, z = z_of(fit, PROBE_FIT_MAX), z_of(test)
     world = fresh.world
