@@ -54,6 +54,7 @@ def main() -> None:
     ap.add_argument("--probe-every", type=int, default=0, help="probe every N epochs too")
     ap.add_argument("--slow-dims", type=int, default=0, help="z_s dimensions under slowness")
     ap.add_argument("--slow-weight", type=float, default=0.0, help="weight of their slowness")
+    ap.add_argument("--save", default=None, help="write the trained weights here (.pt)")
     args = ap.parse_args()
     torch.manual_seed(args.seed)
     torch.set_num_threads(1)
@@ -113,6 +114,8 @@ def main() -> None:
             "test_slowness_per_dim": slowness_on_test(model, fresh, args.heading),
         }
     print(json.dumps(result))
+    if args.save:
+        torch.save(model.state_dict(), args.save)
 
 
 def slowness_on_test(model, fresh, heading: str, window: int = 256) -> list[float]:
