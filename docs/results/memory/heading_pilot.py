@@ -13,7 +13,8 @@ with the issue's probes on ``FRESH`` (every ``--probe-every`` epochs too). Autog
 fixed number of epochs: a pilot, not the kind's training.
 
 ``--slow-dims D --slow-weight W`` adds a slowness prior (slow feature analysis, the robotic
-priors' temporal coherence): W times ``slowness`` of z_s's first D dimensions. The epochs then
+priors' temporal coherence): W times ``slowness`` of z_s's first D dimensions (``--slow-form
+hinge``: a lower floor, and their spread held up by ``spread_hinge``). The epochs then
 log the training windows' slowness of both parts of z_s, and the end probes each part alone and
 gives every dimension's slowness over the fresh test split's 256-step windows.
 """
@@ -33,15 +34,26 @@ from sensorimotor.learn.evaluate import run_model
 from sensorimotor.learn.models import REC_SMA, ModelConfig, build_model
 from sensorimotor.sim.database import load_database, scale_motors, scale_sensors
 
+FLOOR = {"floor": 1e-4, "hinge": 1e-8}  # --slow-form: the variance floor of ``slowness``
+LEAST_STD = 0.1  # --slow-form hinge: a slow dimension's least spread within a window
 
-def slowness(z: torch.Tensor) -> torch.Tensor:
+
+def slowness(z: torch.Tensor, floor: float = FLOOR["floor"]) -> torch.Tensor:
     """How fast the features z (B, T, D) change within each stream's window: every dimension's
-    mean squared step over its variance over the window within each stream, averaged over the
-    dimensions. Scale-free, and a constant (a latched value) earns nothing: its steps are as
-    large as its variation."""
+    mean squared step over its variance over the window within each stream (plus ``floor``),
+    averaged over the dimensions. Scale-free above the floor, and a constant (a latched value)
+    earns nothing: its steps are as large as its variation."""
     steps = (z[:, 1:] - z[:, :-1]).square().mean((0, 1))  # (D,)
     spread = z.var(dim=1, unbiased=False).mean(0)  # (D,): within each stream, then averaged
-    return (steps / (spread + 1e-4)).mean()
+    return (steps / (spread + floor)).mean()
+
+
+def spread_hinge(z: torch.Tensor) -> torch.Tensor:
+    """How far each dimension's spread within the windows falls below ``LEAST_STD``: with
+    ``--slow-form hinge`` a slow dimension cannot shrink to where a floor sets its slowness
+    (the first pilot's did: variance 1e-7 under a floor of 1e-4)."""
+    spread = z.var(dim=1, unbiased=False).mean(0)  # (D,)
+    return torch.relu(LEAST_STD - spread.sqrt()).square().mean()
 
 
 def main() -> None:
@@ -54,13 +66,23 @@ def main() -> None:
     ap.add_argument("--probe-every", type=int, default=0, help="probe every N epochs too")
     ap.add_argument("--slow-dims", type=int, default=0, help="z_s dimensions under slowness")
     ap.add_argument("--slow-weight", type=float, default=0.0, help="weight of their slowness")
+    ap.add_argument(
+        "--slow-form",
+        choices=tuple(FLOOR),
+        default="floor",
+        help="floor: slowness over variance + 1e-4 (the first pilot); hinge: + 1e-8, "
+        "and each slow dimension's spread held at least LEAST_STD",
+    )
     ap.add_argument("--save", default=None, help="write the trained weights here (.pt)")
     args = ap.parse_args()
     torch.manual_seed(args.seed)
     torch.set_num_threads(1)
     settings = TrainConfig.of(REC_SMA)
     k, every, horizon, n_streams = (
-        settings.ahead, settings.ahead_every, settings.horizon, settings.batch_size,
+        settings.ahead,
+        settings.ahead_every,
+        settings.horizon,
+        settings.batch_size,
     )
     n_sensors = 5 if args.heading == "none" else 7
     model = build_model(ModelConfig(kind=REC_SMA, n_sensors=n_sensors), seed=args.seed)
@@ -85,10 +107,16 @@ def main() -> None:
             loss = ((pred - truth) ** 2).sum(-1).mean()
             prediction = float(loss.detach())
             if args.slow_dims:
-                slow = slowness(z[..., : args.slow_dims])
-                loss = loss + args.slow_weight * slow
+                floor = FLOOR[args.slow_form]
+                slow = slowness(z[..., : args.slow_dims], floor)
+                prior = (
+                    slow + spread_hinge(z[..., : args.slow_dims])
+                    if args.slow_form == "hinge"
+                    else slow
+                )
+                loss = loss + args.slow_weight * prior
                 parts[0] += float(slow.detach()) * (j - i)
-                parts[1] += float(slowness(z.detach()[..., args.slow_dims :])) * (j - i)
+                parts[1] += float(slowness(z.detach()[..., args.slow_dims :], floor)) * (j - i)
             opt.zero_grad()
             loss.backward()
             opt.step()
@@ -99,34 +127,52 @@ def main() -> None:
             if args.slow_dims
             else ""
         )
-        print(f"epoch {epoch + 1}: open-loop loss {total / count:.4f}{slow_log} "
-              f"({time.time() - t0:.0f} s)", flush=True)
+        print(
+            f"epoch {epoch + 1}: open-loop loss {total / count:.4f}{slow_log} "
+            f"({time.time() - t0:.0f} s)",
+            flush=True,
+        )
         if args.probe_every and (epoch + 1) % args.probe_every == 0 and epoch + 1 < args.epochs:
-            print(json.dumps({"epoch": epoch + 1, "probes": probe(model, fresh, args.heading)}),
-                  flush=True)
-    result = {"heading": args.heading, "epochs": args.epochs, "slow_dims": args.slow_dims,
-              "slow_weight": args.slow_weight, "probes": probe(model, fresh, args.heading)}
+            print(
+                json.dumps({"epoch": epoch + 1, "probes": probe(model, fresh, args.heading)}),
+                flush=True,
+            )
+    result = {
+        "heading": args.heading,
+        "epochs": args.epochs,
+        "slow_dims": args.slow_dims,
+        "slow_weight": args.slow_weight,
+        "probes": probe(model, fresh, args.heading),
+    }
     if args.slow_dims:
         d = args.slow_dims
         result |= {
             "probes_slow_dims": probe(model, fresh, args.heading, slice(0, d)),
             "probes_other_dims": probe(model, fresh, args.heading, slice(d, None)),
-            "test_slowness_per_dim": slowness_on_test(model, fresh, args.heading),
+            "slow_form": args.slow_form,
+            **slowness_on_test(model, fresh, args.heading, FLOOR[args.slow_form]),
         }
     print(json.dumps(result))
     if args.save:
         torch.save(model.state_dict(), args.save)
 
 
-def slowness_on_test(model, fresh, heading: str, window: int = 256) -> list[float]:
-    """``slowness`` of each z_s dimension over the fresh test split, cut into windows."""
+def slowness_on_test(model, fresh, heading: str, floor: float, window: int = 256) -> dict:
+    """``slowness`` (with ``floor``) and the spread within a window (the variance) of each z_s
+    dimension over the fresh test split, cut into windows."""
     test = fresh.take("test")
     with torch.no_grad():
         s = torch.from_numpy(readings(test, fresh.max_range, heading))
         z = run_model(model, s, torch.from_numpy(scale_motors(test.motors)))[1]
     n = len(z) // window
     z = z[: n * window].reshape(n, window, -1)  # (windows, 256, 10)
-    return [round(float(slowness(z[..., i : i + 1])), 5) for i in range(z.shape[-1])]
+    dims = range(z.shape[-1])
+    return {
+        "test_slowness_per_dim": [
+            round(float(slowness(z[..., i : i + 1], floor)), 5) for i in dims
+        ],
+        "test_spread_per_dim": [float(z[..., i].var(dim=1, unbiased=False).mean()) for i in dims],
+    }
 
 
 def probe(model, fresh, heading: str, dims: slice = slice(None)) -> dict:
