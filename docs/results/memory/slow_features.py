@@ -8,7 +8,7 @@ the last command, ``--heading none``). Every dimension of z_s is regressed (leas
 intercept, fitted on ``FRESH``'s training split after a 200-step burn-in, scored as R^2 on its
 test split) on each set of candidates in turn. A slowness prior can make a recurrent feature
 slow without the place by averaging the readings over a long window: the last columns say how
-much of each dimension such averages explain.
+much of each dimension such averages explain. First, the slowness of the candidates themselves.
 """
 
 from __future__ import annotations
@@ -55,6 +55,14 @@ def candidates(part, max_range: float, world) -> dict[str, np.ndarray]:
     return sets
 
 
+def window_slowness(x: np.ndarray, window: int = 256) -> float:
+    """``heading_pilot.slowness`` without a floor of x (n, 1) cut into windows: a constant
+    window (a room's indicator while the robot stays in it) counts as still."""
+    n = len(x) // window
+    z = torch.from_numpy(np.asarray(x[: n * window], dtype=np.float64)).reshape(n, window, 1)
+    return float(slowness(z, 1e-12))
+
+
 def features(model, part, max_range: float) -> np.ndarray:
     s = torch.from_numpy(scale_sensors(part.sensors, max_range))
     with torch.no_grad():
@@ -79,12 +87,18 @@ def main() -> None:
     fit, test = db.take("train"), db.take("test")
     cand_fit, cand_test = (candidates(p, db.max_range, db.world) for p in (fit, test))
     console = Console()
+    table = Table(title="slowness of the data themselves (fresh test split, 256-step windows)")
+    for col in ("candidate", "column", "slowness"):
+        table.add_column(col, justify="right" if col == "slowness" else "left")
+    for name in ("place", "heading", "now", "avg 30"):
+        cols = cand_test[name]
+        for c in range(cols.shape[1]):
+            table.add_row(name, str(c), f"{window_slowness(cols[:, c : c + 1]):.5f}")
+    console.print(table)
     for path in args.weights:
         model = build_model(ModelConfig(kind=REC_SMA))
         model.load_state_dict(torch.load(path, weights_only=True))
         z_fit, z_test = (features(model, p, db.max_range) for p in (fit, test))
-        windows = len(z_test) // 256
-        z_win = torch.from_numpy(z_test[: windows * 256]).reshape(windows, 256, -1)
         table = Table(title=f"{path}: R^2 of each z_s dimension (fresh test split)")
         table.add_column("dim")
         table.add_column("slowness", justify="right")
@@ -100,7 +114,7 @@ def main() -> None:
             for name in cand_fit
         }
         for d in range(z_test.shape[1]):
-            slow = float(slowness(z_win[..., d : d + 1]))
+            slow = window_slowness(z_test[:, d : d + 1])
             table.add_row(str(d), f"{slow:.4f}", *(f"{scores[n][d]:.2f}" for n in cand_fit))
         console.print(table)
     return 0
