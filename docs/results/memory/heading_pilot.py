@@ -28,10 +28,10 @@ import math
 import time
 
 import torch
-from pose_supervised import heading_probes, readings, streams, turned
+from pose_supervised import heading_probes, memory_z, probes_of, readings, streams, turned
 
+from sensorimotor.analysis.probes import PROBE_FIT_MAX
 from sensorimotor.learn.config import TrainConfig
-from sensorimotor.learn.evaluate import run_model
 from sensorimotor.learn.models import REC_SMA, ModelConfig, build_model
 from sensorimotor.sim.database import load_database, scale_motors, scale_sensors
 
@@ -151,33 +151,33 @@ def main() -> None:
                 json.dumps({"epoch": epoch + 1, "probes": probe(model, fresh, args.heading)}),
                 flush=True,
             )
+    model.eval()  # z_s once for every probe and measure of the end
+    fit, test = fresh.take("train"), fresh.take("test")
+    z_fit = memory_z(model, fit, fresh.max_range, args.heading, PROBE_FIT_MAX)
+    z = memory_z(model, test, fresh.max_range, args.heading)
     result = {
         "heading": args.heading,
         "epochs": args.epochs,
         "slow_dims": args.slow_dims,
         "slow_weight": args.slow_weight,
-        "probes": probe(model, fresh, args.heading),
+        "probes": probes_of(fresh, z_fit, z),
     }
     if args.slow_dims:
         d = args.slow_dims
         result |= {
-            "probes_slow_dims": probe(model, fresh, args.heading, slice(0, d)),
-            "probes_other_dims": probe(model, fresh, args.heading, slice(d, None)),
+            "probes_slow_dims": probes_of(fresh, z_fit[:, :d], z[:, :d]),
+            "probes_other_dims": probes_of(fresh, z_fit[:, d:], z[:, d:]),
             "slow_form": args.slow_form,
-            **slowness_on_test(model, fresh, args.heading, FLOOR[args.slow_form]),
+            **windows_of(torch.from_numpy(z), FLOOR[args.slow_form]),
         }
     print(json.dumps(result))
     if args.save:
         torch.save(model.state_dict(), args.save)
 
 
-def slowness_on_test(model, fresh, heading: str, floor: float, window: int = 256) -> dict:
-    """``slowness`` (with ``floor``) and the spread within a window (the variance) of each z_s
-    dimension over the fresh test split, cut into windows."""
-    test = fresh.take("test")
-    with torch.no_grad():
-        s = torch.from_numpy(readings(test, fresh.max_range, heading))
-        z = run_model(model, s, torch.from_numpy(scale_motors(test.motors)))[1]
+def windows_of(z: torch.Tensor, floor: float, window: int = 256) -> dict:
+    """``slowness`` (with ``floor``) and the spread within a window (the variance) of each
+    column of z (n, 10), the test split's z_s, cut into windows."""
     n = len(z) // window
     z = z[: n * window].reshape(n, window, -1)  # (windows, 256, 10)
     dims = range(z.shape[-1])
@@ -189,11 +189,10 @@ def slowness_on_test(model, fresh, heading: str, floor: float, window: int = 256
     }
 
 
-def probe(model, fresh, heading: str, dims: slice = slice(None)) -> dict:
-    """The issue's probes of z_s (its ``dims``) on ``fresh``, the model left in training mode."""
+def probe(model, fresh, heading: str) -> dict:
+    """The issue's probes of z_s on ``fresh``, the model left in training mode after."""
     model.eval()
-    with torch.no_grad():
-        probes = heading_probes(model, fresh, heading, dims)
+    probes = heading_probes(model, fresh, heading)
     model.train()
     return probes
 

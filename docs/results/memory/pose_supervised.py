@@ -82,22 +82,31 @@ def turned(s: torch.Tensor, angle: torch.Tensor) -> torch.Tensor:
     return torch.cat([s[..., :5], (c * cos - n * sin)[..., None], (n * cos + c * sin)[..., None]], -1)
 
 
-def heading_probes(model, fresh, heading: str, dims: slice = slice(None)) -> dict:
-    """``probe_places``' probes of a memory that reads a heading (its inputs are not a
-    database's readings, so ``probe_places`` cannot run it); of z_s's ``dims`` only if given."""
+def memory_z(model, part, max_range: float, heading: str, steps: int | None = None) -> np.ndarray:
+    """z_s (n, 10) of a memory that reads ``readings(part, ..., heading)`` and the commands,
+    over the part's first ``steps`` steps (all by default), from a zero state."""
+    s = torch.from_numpy(readings(part, max_range, heading)[:steps])
+    with torch.no_grad():
+        return run_model(model, s, torch.from_numpy(scale_motors(part.motors[:steps])))[1].numpy()
+
+
+def probes_of(fresh, z_fit: np.ndarray, z: np.ndarray) -> dict:
+    """``place_probes`` of features of ``fresh``'s first training steps (``z_fit``) and of its
+    test split (``z``)."""
     fit, test = fresh.take("train"), fresh.take("test")
-
-    def z_of(part, steps=None):
-        s = torch.from_numpy(readings(part, fresh.max_range, heading)[:steps])
-        z = run_model(model, s, torch.from_numpy(scale_motors(part.motors[:steps])))[1]
-        return z.numpy()[:, dims]
-
-    z_fit, z = z_of(fit, PROBE_FIT_MAX), z_of(test)
-    world = fresh.world
-    rooms_fit = world.room_index(fit.poses[: len(z_fit), 0], fit.poses[: len(z_fit), 1])
+    world, fit_poses = fresh.world, fit.poses[: len(z_fit)]
+    rooms_fit = world.room_index(fit_poses[:, 0], fit_poses[:, 1])
     rooms = world.room_index(test.poses[:, 0], test.poses[:, 1])
-    return place_probes(z_fit, fit.poses[: len(z_fit)], z, test.poses, rooms_fit, rooms,
+    return place_probes(z_fit, fit_poses, z, test.poses, rooms_fit, rooms,
                         (world.width, world.height))
+
+
+def heading_probes(model, fresh, heading: str) -> dict:
+    """``probe_places``' probes of a memory that reads a heading (its inputs are not a
+    database's readings, so ``probe_places`` cannot run it)."""
+    fit, test = fresh.take("train"), fresh.take("test")
+    z_fit = memory_z(model, fit, fresh.max_range, heading, PROBE_FIT_MAX)
+    return probes_of(fresh, z_fit, memory_z(model, test, fresh.max_range, heading))
 
 
 def streams(a: np.ndarray, n: int) -> torch.Tensor:

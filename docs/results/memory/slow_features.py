@@ -19,13 +19,13 @@ import sys
 import numpy as np
 import torch
 from heading_pilot import slowness
+from pose_supervised import memory_z
 from rich.console import Console
 from rich.table import Table
 from scipy.signal import lfilter
 
-from sensorimotor.learn.evaluate import run_model
 from sensorimotor.learn.models import REC_SMA, ModelConfig, build_model
-from sensorimotor.sim.database import load_database, scale_motors, scale_sensors
+from sensorimotor.sim.database import load_database, scale_sensors
 
 BURN_IN = 200
 TAUS = (30, 300, 3000)  # steps: the averaging windows (a room holds the robot ~330 steps)
@@ -63,12 +63,6 @@ def window_slowness(x: np.ndarray, window: int = 256) -> float:
     return float(slowness(z, 1e-12))
 
 
-def features(model, part, max_range: float) -> np.ndarray:
-    s = torch.from_numpy(scale_sensors(part.sensors, max_range))
-    with torch.no_grad():
-        return run_model(model, s, torch.from_numpy(scale_motors(part.motors)))[1].numpy()
-
-
 def r2_of(fit_x, fit_y, test_x, test_y) -> np.ndarray:
     """R^2 on the test rows of a least-squares fit with an intercept, per column of y."""
     ones = np.ones((len(fit_x), 1))
@@ -98,7 +92,7 @@ def main() -> None:
     for path in args.weights:
         model = build_model(ModelConfig(kind=REC_SMA))
         model.load_state_dict(torch.load(path, weights_only=True))
-        z_fit, z_test = (features(model, p, db.max_range) for p in (fit, test))
+        z_fit, z_test = (memory_z(model, p, db.max_range, "none") for p in (fit, test))
         table = Table(title=f"{path}: R^2 of each z_s dimension (fresh test split)")
         table.add_column("dim")
         table.add_column("slowness", justify="right")
