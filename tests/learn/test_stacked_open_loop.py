@@ -22,6 +22,7 @@ from sensorimotor.learn.fast.stacked_open_loop import (
     train_epoch_stacked_open_loop,
 )
 from sensorimotor.learn.models import REC_SMA, ModelConfig, build_model
+from sensorimotor.learn.slowness import slowness_prior
 from sensorimotor.learn.train import trains_stacked
 
 pytestmark = pytest.mark.usefixtures("one_thread")
@@ -32,11 +33,17 @@ def _data(n: int, seed: int = 1):
     return torch.rand(n + 1, 5, generator=g), torch.rand(n + 1, 2, generator=g)
 
 
-@pytest.mark.parametrize("reads", [True, False])  # False: the ablation, zeros into the memory
-def test_loss_and_gradients_equal_autograd_over_two_chunks(reads):
+@pytest.mark.parametrize(  # reads False: the ablation, zeros into the memory
+    ("reads", "slow_dims"),
+    [(True, 0), (False, 0), (True, 3)],  # 3: the slowness prior on z_s
+)
+def test_loss_and_gradients_equal_autograd_over_two_chunks(reads, slow_dims):
     config = ModelConfig(kind=REC_SMA, memory_motors=None if reads else False)
     seeds, (t, b, ahead, every) = (3, 0), (9, 4, 4, 3)
     models = [build_model(config, seed=sd) for sd in seeds]
+    with torch.no_grad():  # z_s as wide in a window as a trained one's (1e-5 at the start):
+        for model in models:  # the prior divides by that spread, so rounding grows as it shrinks
+            model.sensor_out.weight.mul_(30 if slow_dims else 1)
     net = StackedEncoders.from_models(models)
     g = torch.Generator().manual_seed(2)
     state, states = None, [None] * len(seeds)
@@ -45,7 +52,7 @@ def test_loss_and_gradients_equal_autograd_over_two_chunks(reads):
         xm = torch.rand(t + ahead - 1, b, 2, generator=g) * 4 - 2
         y = torch.rand(t + ahead - 1, b, 5, generator=g)
         w = (torch.rand(ahead, -(-t // every), b, generator=g) > 0.3).float()  # (A, T', B)
-        state, sq, count = forward_backward(net, xs, xm, y, w, state, ahead, every)
+        state, sq, count = forward_backward(net, xs, xm, y, w, state, ahead, every, slow_dims, 0.7)
         assert count == w.sum()
         for k, model in enumerate(models):
             model.zero_grad()
@@ -54,10 +61,16 @@ def test_loss_and_gradients_equal_autograd_over_two_chunks(reads):
             pred = model.ahead(z, xm.transpose(0, 1), ahead, every)  # (A, B, T', 5)
             target = torch.stack([y[j : j + t : every].transpose(0, 1) for j in range(ahead)])
             err = (pred - target).square().sum(-1) * w.transpose(1, 2)
-            (err.sum() / w.sum()).backward()
+            loss = err.sum() / w.sum()
+            if slow_dims:
+                loss = loss + 0.7 * slowness_prior(z, slow_dims)
+            loss.backward()
             assert sq[k] == pytest.approx(float(err.sum().detach()), rel=1e-5)
             for grad, p in zip(net.grads, model.parameters(), strict=True):
-                assert torch.allclose(grad[k].reshape(p.shape), p.grad, rtol=1e-4, atol=1e-6)
+                # the prior's gradient of a shift of z_s (sensor_out's bias) is 0 by
+                # cancellation: rounding, to a fraction of the largest gradient
+                atol = 1e-3 * float(p.grad.abs().max()) if slow_dims else 1e-6
+                assert torch.allclose(grad[k].reshape(p.shape), p.grad, rtol=1e-4, atol=atol)
     motor_columns = net.grads[net.index["lstm.weight_ih_l0"]][:, :, -2:]  # m_{t-1}'s weights
     assert bool(motor_columns.abs().max() > 0) == reads  # the ablation's zeros teach them nothing
 
@@ -90,11 +103,12 @@ def test_stacked_epochs_follow_the_plain_loop_and_do_not_depend_on_the_stack():
         assert all(torch.equal(a[k], b[0]) for a, b in zip(net.params, net1.params, strict=True))
 
 
-def test_the_stacked_engine_trains_and_validates_each_seed_as_autograd_does():
+@pytest.mark.parametrize("slow_dims", [0, 4])
+def test_the_stacked_engine_trains_and_validates_each_seed_as_autograd_does(slow_dims):
     assert trains_stacked(REC_SMA, "cpu")
     s, m = _data(4 * 256 + 50)
     val = _data(400, seed=7)
-    config = TrainConfig.of(REC_SMA)
+    config = TrainConfig.of(REC_SMA, slow_dims=slow_dims)
     data = TrainData(s, m, [val])
 
     def members():

@@ -306,6 +306,10 @@ def test_unknown_model_is_refused(square_db_path, tmp_path, cli):
         ({"min_ratio": 1.2}, "TrainConfig.min_ratio must be at most 1"),
         ({"max_minutes": 0}, "TrainConfig.max_minutes"),
         ({"device": "tpu"}, "unknown device 'tpu'"),
+        ({"slow_dims": -1}, "TrainConfig.slow_dims must be an integer >= 0"),
+        ({"model": "rec-sm", "slow_dims": 4}, "the slowness prior trains rec-sma's beliefs"),
+        ({"model": "rec-sma", "slow_dims": 4097}, "TrainConfig.slow_dims must be at most 4096"),
+        ({"model": "rec-sma", "slow_dims": 4, "slow_weight": 0}, "TrainConfig.slow_weight"),
     ],
 )
 def test_a_setting_that_cannot_train_is_refused_by_name(setting, needle):

@@ -8,7 +8,7 @@ import numbers
 from dataclasses import dataclass
 
 from sensorimotor.errors import InputError
-from sensorimotor.learn.models import KINDS, REC_SM
+from sensorimotor.learn.models import KINDS, MAX_WIDTH, REC_SM
 from sensorimotor.sim import MAX_SEED
 
 
@@ -41,6 +41,11 @@ class TrainConfig:
     ahead_every: int = 1
     """Open-loop predictions start at every this many steps (the memory reads every one):
     the loss's mean is estimated at a fraction of the cost."""
+    slow_dims: int = 0
+    """The first this many dimensions of z_s also learn by the slowness prior
+    (``slowness.slowness_prior``; kinds with a motor memory; 0: prediction alone)."""
+    slow_weight: float = 1.0
+    """The slowness prior's weight beside the prediction loss (with ``slow_dims``)."""
     patience: int = 10
     """Stop after this many epochs in a row without improvement."""
     min_ratio: float = 0.95
@@ -62,7 +67,7 @@ class TrainConfig:
             raise InputError(f"TrainConfig.model: use one of {kinds}, got {self.model!r}")
         check_device(self.device)
         counts = {"seed": 0, "batch_size": 1, "horizon": 1, "patience": 1, "threads": 1}
-        counts |= {"ahead": 1, "ahead_every": 1}
+        counts |= {"ahead": 1, "ahead_every": 1, "slow_dims": 0}
         counts |= {} if self.max_epochs is None else {"max_epochs": 1}
         for name, least in counts.items():
             value = getattr(self, name)
@@ -71,7 +76,7 @@ class TrainConfig:
             object.__setattr__(self, name, int(value))
         if self.seed > MAX_SEED:
             raise InputError(f"TrainConfig.seed must be at most {MAX_SEED}, got {self.seed}")
-        positive = {"lr": self.lr, "min_ratio": self.min_ratio}
+        positive = {"lr": self.lr, "min_ratio": self.min_ratio, "slow_weight": self.slow_weight}
         positive |= {} if self.max_minutes is None else {"max_minutes": self.max_minutes}
         for name, value in positive.items():
             if isinstance(value, bool) or not isinstance(value, numbers.Real):
@@ -85,6 +90,15 @@ class TrainConfig:
             raise InputError(
                 f"TrainConfig.ahead: {self.model} predicts one step (open loop needs rec-sma's "
                 f"transition), got {self.ahead}"
+            )
+        if self.slow_dims and not KINDS[self.model].motor_memory:
+            raise InputError(
+                f"TrainConfig.slow_dims: the slowness prior trains rec-sma's beliefs, not "
+                f"{self.model}'s, got {self.slow_dims}"
+            )
+        if self.slow_dims > MAX_WIDTH:  # z_s's width bounds it (checked against it in train)
+            raise InputError(
+                f"TrainConfig.slow_dims must be at most {MAX_WIDTH}, got {self.slow_dims}"
             )
         if self.ahead > MAX_AHEAD:
             raise InputError(f"TrainConfig.ahead must be at most {MAX_AHEAD}, got {self.ahead}")

@@ -47,6 +47,7 @@ from sensorimotor.learn.fast.stacked import StackedEncoders, train_epoch_stacked
 from sensorimotor.learn.fast.stacked_lstm import sequence_errors, train_epoch_stacked_recurrent
 from sensorimotor.learn.fast.stacked_open_loop import train_epoch_stacked_open_loop
 from sensorimotor.learn.models import SensorimotorEncoder
+from sensorimotor.learn.slowness import slowness_prior
 
 __all__ = [  # the engines, and what the loop, the pipeline and the command line take of fast
     "AutogradEngine",
@@ -131,8 +132,9 @@ class AutogradEngine:
             mb.model.train()
             if mb.model.config.recurrent:
                 error = train_epoch_recurrent(
-                    mb.model, mb.opt, s, m, c.batch_size, c.horizon, c.ahead, c.ahead_every
-                )
+                    mb.model, mb.opt, s, m, c.batch_size, c.horizon, c.ahead, c.ahead_every,
+                    slow_dims=c.slow_dims, slow_weight=c.slow_weight,
+                )  # fmt: skip
             else:
                 order = epoch_generator(mb.seed, epoch)
                 error = train_epoch_feedforward(mb.model, mb.opt, s, m, c.batch_size, order)
@@ -183,7 +185,7 @@ class StackedEngine:
         if self.net.config.motor_memory:
             errors = train_epoch_stacked_open_loop(
                 self.net, self.data.s, self.data.m, c.batch_size, c.horizon, c.ahead,
-                c.ahead_every,
+                c.ahead_every, slow_dims=c.slow_dims, slow_weight=c.slow_weight,
             )  # fmt: skip
         elif self.recurrent:
             errors = train_epoch_stacked_recurrent(
@@ -231,13 +233,24 @@ def train_epoch_feedforward(model, opt, s, m, batch: int, gen: torch.Generator) 
 
 
 def train_epoch_recurrent(
-    model, opt, s, m, streams: int, horizon: int, ahead: int = 1, every: int = 1
+    model,
+    opt,
+    s,
+    m,
+    streams: int,
+    horizon: int,
+    ahead: int = 1,
+    every: int = 1,
+    slow_dims: int = 0,
+    slow_weight: float = 1.0,
 ) -> float:
     """One epoch of truncated BPTT over ``streams`` contiguous streams; mean training error.
 
     A model with a motor memory predicts s_{t+1} .. s_{t+ahead} open loop from every
     ``every``-th step (``models.SensorimotorEncoder.ahead``): the loss is their mean, each
-    target inside the split (a stream's last steps look into the data that follow it). On CUDA the chunks that
+    target inside the split (a stream's last steps look into the data that follow it), plus
+    ``slow_weight`` times the slowness prior on z_s's first ``slow_dims`` dimensions (the
+    returned error is the prediction's alone). On CUDA the chunks that
     no stream's end pads run as one replayed graph each (``fast.cuda_graphs``): the same
     arithmetic, a fraction of the launches."""
     n = len(s) - 1
@@ -247,7 +260,9 @@ def train_epoch_recurrent(
         unmasked = int(mask.all(0).long().cumprod(0).sum())  # columns before the first pad
         graphed = unmasked // horizon * horizon
     if model.config.motor_memory:
-        return _open_loop_epoch(model, opt, s, m, index, mask, horizon, ahead, every)
+        return _open_loop_epoch(
+            model, opt, s, m, index, mask, horizon, ahead, every, slow_dims, slow_weight
+        )
     w = None if bool(mask.all()) else mask.float().to(s.device)  # (streams, L)
     index = index.to(s.device)
     xs, xm, y = s[:-1][index], m[:-1][index], s[1:][index]  # (streams, L, 5|2|5)
@@ -280,9 +295,13 @@ def train_epoch_recurrent(
     return float(total) / n
 
 
-def _open_loop_epoch(model, opt, s, m, index, mask, horizon: int, ahead: int, every: int) -> float:
+def _open_loop_epoch(
+    model, opt, s, m, index, mask, horizon: int, ahead: int, every: int, slow_dims, slow_weight
+) -> float:
     """``train_epoch_recurrent`` for a motor memory: each chunk's beliefs z_s predict the
-    ``ahead`` readings after every step; returns the mean over every (step, k) inside the split."""
+    ``ahead`` readings after every step (and, with ``slow_dims``, change slowly: the prior
+    reads every step of the chunk, the one padded step at a short stream's end included);
+    returns the prediction's mean error over every (step, k) inside the split."""
     n = len(s) - 1
     length = index.shape[1]
     grid = index[:, :1] + torch.arange(length + ahead - 1)  # (B, L + K - 1): the data go on
@@ -303,6 +322,8 @@ def _open_loop_epoch(model, opt, s, m, index, mask, horizon: int, ahead: int, ev
         wj = w[:, :, j : j + t : every]  # (K, B, t')
         err = ((pred - target) ** 2).sum(-1) * wj
         loss = err.sum() / wj.sum().clamp(min=1)
+        if slow_dims:
+            loss = loss + slow_weight * slowness_prior(z, slow_dims)
         opt.zero_grad()
         loss.backward()
         opt.step()

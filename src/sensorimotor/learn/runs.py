@@ -49,7 +49,17 @@ class Optimizer(Protocol):
     def load_state_dict(self, state: dict) -> None: ...
 
 
-SETTABLE = ("lr", "batch_size", "horizon", "ahead", "ahead_every", "patience", "min_ratio")
+SETTABLE = (
+    "lr",
+    "batch_size",
+    "horizon",
+    "ahead",
+    "ahead_every",
+    "slow_dims",
+    "slow_weight",
+    "patience",
+    "min_ratio",
+)
 """TrainConfig settings that ``train --set KEY=VALUE`` changes (the others have options)."""
 SIZES = (
     "z_sensors",
@@ -75,7 +85,8 @@ def parse_settings(pairs: list[str]) -> dict:
     """``["lr=0.003", "lstm_size=64"]`` -> ``{"lr": 0.003, "lstm_size": 64}``, each value of
     its field's type (``SETTABLE`` and ``SIZES``); InputError naming the pair on an unknown key
     or an unreadable value (the range is TrainConfig's and ``model_config``'s to check)."""
-    kinds = {"lr": float, "min_ratio": float} | dict.fromkeys(SETTABLE[1:-1], int)
+    numbers = ("lr", "slow_weight", "min_ratio")
+    kinds = {k: float if k in numbers else int for k in SETTABLE}
     kinds |= dict.fromkeys(SIZES, int) | dict.fromkeys(SWITCHES, _switch)
     settings = {}
     for pair in pairs:

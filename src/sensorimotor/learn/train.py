@@ -164,6 +164,10 @@ def train_runs(
     model_config = ModelConfig(kind=config.model) if model is None else model
     if model_config.kind != config.model:
         raise ValueError(f"a {model_config.kind} model for TrainConfig.model {config.model}")
+    if config.slow_dims > model_config.z_sensors:
+        raise InputError(
+            f"slow_dims: z_s has {model_config.z_sensors} dimensions, got {config.slow_dims}"
+        )
     stacked = trains_stacked(model_config, device)
     if stacked and model_config.recurrent and len(files) > 1:
         raise ValueError("a recurrent stack trains on one database")

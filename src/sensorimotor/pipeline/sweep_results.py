@@ -163,7 +163,7 @@ def command_line(data: str, config: dict, sizes: dict, out: str = "runs/best") -
         words += ["--max-minutes", str(config["max_minutes"])]
     default = TrainConfig.of(config["model"])  # the kind's own settings need no --set
     for key in SETTABLE:
-        if config[key] != getattr(default, key):
+        if config.get(key, getattr(default, key)) != getattr(default, key):
             words += ["--set", f"{key}={config[key]!r}"]
     paper = ModelConfig(kind=config["model"])
     for key, value in sizes.items():

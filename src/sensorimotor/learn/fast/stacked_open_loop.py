@@ -37,6 +37,7 @@ from sensorimotor.learn.fast.stacked_lstm import (
     lstm_backward,
     lstm_forward,
 )
+from sensorimotor.learn.slowness import prior_gradient
 
 OpenLoopState = tuple[State, torch.Tensor | None]  # the LSTM's, and the last command (B, 2)
 
@@ -108,6 +109,8 @@ def forward_backward(
     state: OpenLoopState | None,
     ahead: int,
     every: int,
+    slow_dims: int = 0,
+    slow_weight: float = 1.0,
 ) -> tuple[OpenLoopState, torch.Tensor, torch.Tensor]:
     """One chunk of every seed: the loss gradient into ``net.grads``; returns the state after
     the chunk, each seed's weighted squared error summed (K,) and the weights' sum.
@@ -115,7 +118,9 @@ def forward_backward(
     xs (T, B, 5) the chunk's readings s_t; xm (T + A - 1, B, 2) the commands m_t from the
     chunk's first step on; y (T + A - 1, B, 5) the readings s_{t+1} alike; weight (A, T', B),
     T' = ceil(T / every): 1 where the k-th prediction from step t counts (its target inside
-    the split). All shared by the seeds."""
+    the split). All shared by the seeds. With ``slow_dims``, each seed's loss also holds
+    ``slow_weight`` times the slowness prior of its z_s over the chunk
+    (``learn.slowness``; its gradient by autograd, a few small operations)."""
     c = net.config
     K, plan, grads = net.k, net.layers, net.grads
     T, B, _ = xs.shape
@@ -138,6 +143,9 @@ def forward_backward(
 
     # the head, forward and backward by hand from the beliefs z_s
     dz, per_seed = _head(net, z.view(K, T, B, -1), xm, y, weight, ahead, every)
+    if slow_dims:  # the prior reads each stream's window: (K, B, T, 10)
+        beliefs = z.view(K, T, B, -1).transpose(1, 2)
+        dz += prior_gradient(beliefs, slow_dims, slow_weight).transpose(1, 2)
     dz = dz.view(K, n, -1)  # (K, TB, 10)
 
     # back through the memory by hand
@@ -160,10 +168,12 @@ def train_epoch_stacked_open_loop(
     horizon: int,
     ahead: int,
     every: int,
+    slow_dims: int = 0,
+    slow_weight: float = 1.0,
 ) -> torch.Tensor:
     """One epoch of every seed of a motor memory, as ``engine._open_loop_epoch`` runs it for
-    one (the same streams, chunks, targets and weights); each seed's mean error (K,) over
-    every (step, k) inside the split."""
+    one (the same streams, chunks, targets, weights and prior); each seed's mean prediction
+    error (K,) over every (step, k) inside the split."""
     n = len(s) - 1
     index, mask = stream_layout(n, streams)
     length = index.shape[1]
@@ -181,7 +191,7 @@ def train_epoch_stacked_open_loop(
             t = min(horizon, length - j)
             state, sq, c = forward_backward(
                 net, xs[j : j + t], xm[j : j + t + ahead - 1], y[j : j + t + ahead - 1],
-                w[:, j : j + t : every], state, ahead, every,
+                w[:, j : j + t : every], state, ahead, every, slow_dims, slow_weight,
             )  # fmt: skip
             net.adam_step()
             total += sq
