@@ -1,12 +1,14 @@
 """The probes of paper-scale seeds of Rec-SMA, its ablations and Rec-SM side by side (issue 32).
 
-    python docs/results/memory/five_seeds.py [LABEL=]PROBES ... [--png FILE [--ceiling X] [--world W]]
+    python docs/results/memory/five_seeds.py [LABEL=]PROBES ... [--paired] [--png FILE [--ceiling X] [--world W]]
 
 Each PROBES is a folder of ``s0`` .. ``s4`` folders written by ``sensorimotor analyze RUN
 --data FRESH.npz --out PROBES/sN`` (LABEL: the column's name, default the folder's). Prints
 the mean and Student-t 95 % interval of each probe beside the issue's goals (set before any
 Rec-SMA was trained); a probe a world does not have (the room of Square) is left out. The
-seeds of two columns are independent models, so no difference is paired. ``--png``: the room
+seeds of two columns are independent models, so no difference is paired, unless ``--paired``:
+then the first column minus the second, seed by seed (a setting beside its control: the same
+seeds' initial weights and data order), with its Student-t interval. ``--png``: the room
 probe of each column drawn, each seed a dot, the mean with its interval, the goal a line.
 """
 
@@ -65,6 +67,22 @@ def print_table(columns: dict[str, dict[str, list[float]]]) -> None:
         print(f"| {name} | " + " | ".join(cells) + " |")
 
 
+def print_paired(columns: dict[str, dict[str, list[float]]], folders: list[Path]) -> None:
+    """The first column minus the second, seed by seed, for every probe both hold."""
+    names = [sorted(p.name for p in folder.glob("s[0-9]*")) for folder in folders[:2]]
+    if len(columns) < 2 or names[0] != names[1]:
+        raise SystemExit(f"--paired: the first two columns must hold the same seeds, got {names}")
+    (a, first), (b, second) = list(columns.items())[:2]
+    print(f"\n| probe | {a} minus {b}, by seed: mean [t 95 %] | by seed |")
+    print("|---|---|---|")
+    for name in PROBES:
+        if name in first and name in second:
+            diffs = [x - y for x, y in zip(first[name], second[name], strict=True)]
+            low, high = t_interval(diffs)
+            each = ", ".join(f"{d:+.3f}" for d in diffs)
+            print(f"| {name} | {sum(diffs) / len(diffs):+.3f} [{low:+.3f}, {high:+.3f}] | {each} |")
+
+
 def plot_room(
     columns: dict[str, dict[str, list[float]]],
     png: Path,
@@ -91,7 +109,7 @@ def plot_room(
         ax.axhline(ceiling, color="tab:blue", ls="-.", label="true pose (ceiling)")
     ax.set_xticks(range(len(columns)), list(columns), rotation=15, ha="right", fontsize=8)
     ax.set_ylabel("balanced room accuracy (fresh test split)")
-    ax.set_ylim(0.3, 1.02)
+    ax.set_ylim(min(0.3, 1 / len(load_world(world).rooms) - 0.05), 1.02)
     ax.legend(fontsize=8, loc="center right")
     fig.tight_layout()
     fig.savefig(png, dpi=120)
@@ -100,15 +118,19 @@ def plot_room(
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("columns", nargs="+", metavar="[LABEL=]PROBES")
+    parser.add_argument("--paired", action="store_true", help="the first two columns by seed")
     parser.add_argument("--png", type=Path, help="draw the room probe of each column here")
     parser.add_argument("--ceiling", type=float, help="the true pose's room accuracy, a line")
     parser.add_argument("--world", default="rooms1", choices=list(THRESHOLDS["room"]))
     args = parser.parse_args()
-    columns = {}
+    columns, folders = {}, []
     for column in args.columns:
         label, _, folder = column.rpartition("=")  # a label may hold "=", a folder not
         columns[label or Path(folder).name] = probe_table(Path(folder))
+        folders.append(Path(folder))
     print_table(columns)
+    if args.paired:
+        print_paired(columns, folders)
     if args.png is not None:
         plot_room(columns, args.png, args.ceiling, args.world)
 

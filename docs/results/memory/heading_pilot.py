@@ -33,28 +33,10 @@ from pose_supervised import heading_probes, memory_z, probes_of, readings, strea
 from sensorimotor.analysis.probes import PROBE_FIT_MAX
 from sensorimotor.learn.config import TrainConfig
 from sensorimotor.learn.models import REC_SMA, ModelConfig, build_model
+from sensorimotor.learn.slowness import slowness, spread_hinge  # the hinge form: a setting now
 from sensorimotor.sim.database import load_database, scale_motors, scale_sensors
 
 FLOOR = {"floor": 1e-4, "hinge": 1e-8, "sfa": 1e-8}  # --slow-form: the floor of ``slowness``
-LEAST_STD = 0.1  # --slow-form hinge: a slow dimension's least spread within a window
-
-
-def slowness(z: torch.Tensor, floor: float = FLOOR["floor"]) -> torch.Tensor:
-    """How fast the features z (B, T, D) change within each stream's window: every dimension's
-    mean squared step over its variance over the window within each stream (plus ``floor``),
-    averaged over the dimensions. Scale-free above the floor, and a constant (a latched value)
-    earns nothing: its steps are as large as its variation."""
-    steps = (z[:, 1:] - z[:, :-1]).square().mean((0, 1))  # (D,)
-    spread = z.var(dim=1, unbiased=False).mean(0)  # (D,): within each stream, then averaged
-    return (steps / (spread + floor)).mean()
-
-
-def spread_hinge(z: torch.Tensor) -> torch.Tensor:
-    """How far each dimension's spread within the windows falls below ``LEAST_STD``: with
-    ``--slow-form hinge`` a slow dimension cannot shrink to where a floor sets its slowness
-    (the first pilot's did: variance 1e-7 under a floor of 1e-4)."""
-    spread = z.var(dim=1, unbiased=False).mean(0)  # (D,)
-    return torch.relu(LEAST_STD - spread.sqrt()).square().mean()
 
 
 def correlation(z: torch.Tensor) -> torch.Tensor:

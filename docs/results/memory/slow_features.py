@@ -18,13 +18,13 @@ import sys
 
 import numpy as np
 import torch
-from heading_pilot import slowness
 from pose_supervised import memory_z
 from rich.console import Console
 from rich.table import Table
 from scipy.signal import lfilter
 
 from sensorimotor.learn.models import REC_SMA, ModelConfig, build_model
+from sensorimotor.learn.slowness import slowness
 from sensorimotor.sim.database import load_database, scale_sensors
 
 BURN_IN = 200

@@ -17,13 +17,13 @@ FLOOR = 1e-8  # added to a window's variance: the ratio stays finite for a const
 LEAST_STD = 0.1  # a slow dimension's least spread within a window (the free ones: 0.3-0.8)
 
 
-def slowness(z: torch.Tensor) -> torch.Tensor:
+def slowness(z: torch.Tensor, floor: float = FLOOR) -> torch.Tensor:
     """How fast the features z (..., B, T, D) change within each of B streams' windows: each
     dimension's mean squared step over its variance within a stream (averaged over streams,
-    plus ``FLOOR``), averaged over the dimensions -> (...,)."""
+    plus ``floor``), averaged over the dimensions -> (...,)."""
     steps = (z[..., 1:, :] - z[..., :-1, :]).square().mean((-3, -2))  # (..., D)
     spread = z.var(dim=-2, unbiased=False).mean(-2)  # (..., D): within each stream
-    return (steps / (spread + FLOOR)).mean(-1)
+    return (steps / (spread + floor)).mean(-1)
 
 
 def spread_hinge(z: torch.Tensor) -> torch.Tensor:
