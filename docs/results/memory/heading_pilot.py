@@ -66,7 +66,7 @@ def main() -> None:
         choices=tuple(FLOOR),
         default="floor",
         help="floor: slowness over variance + 1e-4 (the first pilot); hinge: + 1e-8, "
-        "and each slow dimension's spread held at least LEAST_STD; sfa: hinge, and the slow "
+        "and each slow dimension's spread held at least learn.slowness.LEAST_STD; sfa: hinge, and the slow "
         "dimensions decorrelated",
     )
     ap.add_argument("--save", default=None, help="write the trained weights here (.pt)")

@@ -29,8 +29,9 @@ if TYPE_CHECKING:
 
 SET_HELP = (
     "A setting KEY=VALUE, repeatable: lr, batch_size, horizon, ahead, ahead_every, slow_dims "
-    "and slow_weight (rec-sma), patience, min_ratio; a model size: z_sensors, z_motors, rec_hidden, lstm_size, lstm_layers, "
-    "predictor_hidden, transition_hidden; or memory_motors=false (rec-sma's ablation)."
+    "and slow_weight (rec-sma), patience, min_ratio; a model size: z_sensors, z_motors, "
+    "rec_hidden, lstm_size, lstm_layers, predictor_hidden, transition_hidden; or "
+    "memory_motors=false (rec-sma's ablation)."
 )
 
 

@@ -296,7 +296,17 @@ def train_epoch_recurrent(
 
 
 def _open_loop_epoch(
-    model, opt, s, m, index, mask, horizon: int, ahead: int, every: int, slow_dims, slow_weight
+    model,
+    opt,
+    s,
+    m,
+    index,
+    mask,
+    horizon: int,
+    ahead: int,
+    every: int,
+    slow_dims: int,
+    slow_weight: float,
 ) -> float:
     """``train_epoch_recurrent`` for a motor memory: each chunk's beliefs z_s predict the
     ``ahead`` readings after every step (and, with ``slow_dims``, change slowly: the prior

@@ -162,9 +162,10 @@ def command_line(data: str, config: dict, sizes: dict, out: str = "runs/best") -
     if config["max_minutes"] is not None:
         words += ["--max-minutes", str(config["max_minutes"])]
     default = TrainConfig.of(config["model"])  # the kind's own settings need no --set
-    for key in SETTABLE:
-        if config.get(key, getattr(default, key)) != getattr(default, key):
-            words += ["--set", f"{key}={config[key]!r}"]
+    for key in SETTABLE:  # a setting a trial does not record ran at its default
+        value = config.get(key, getattr(default, key))
+        if value != getattr(default, key):
+            words += ["--set", f"{key}={value!r}"]
     paper = ModelConfig(kind=config["model"])
     for key, value in sizes.items():
         if value != getattr(paper, key):
