@@ -15,7 +15,8 @@ fixed number of epochs: a pilot, not the kind's training.
 ``--slow-dims D --slow-weight W`` adds a slowness prior (slow feature analysis, the robotic
 priors' temporal coherence): W times ``slowness`` of z_s's first D dimensions (``--slow-form
 hinge``: a lower floor, and their spread held up by ``spread_hinge``; ``sfa``: also
-``correlation``, so that they are D features, not one). The epochs then
+``correlation``, so that they are D features, not one; ``contrastive``: no slowness, but a
+time-contrastive loss, ``contrastive``, as in time-contrastive networks and CPC). The epochs then
 log the training windows' slowness of both parts of z_s, and the end probes each part alone and
 gives every dimension's slowness over the fresh test split's 256-step windows.
 """
@@ -36,7 +37,8 @@ from sensorimotor.learn.models import REC_SMA, ModelConfig, build_model
 from sensorimotor.learn.slowness import slowness, spread_hinge  # the hinge form: a setting now
 from sensorimotor.sim.database import load_database, scale_motors, scale_sensors
 
-FLOOR = {"floor": 1e-4, "hinge": 1e-8, "sfa": 1e-8}  # --slow-form: the floor of ``slowness``
+FLOOR = {"floor": 1e-4, "hinge": 1e-8, "sfa": 1e-8, "contrastive": 1e-8}  # of ``slowness``
+GAP, EVERY, TEMPERATURE = 32, 8, 0.1  # --slow-form contrastive: set before its first run
 
 
 def correlation(z: torch.Tensor) -> torch.Tensor:
@@ -49,6 +51,27 @@ def correlation(z: torch.Tensor) -> torch.Tensor:
     off = c - torch.diag(torch.diagonal(c))
     d = z.shape[-1]
     return off.square().sum() / max(d * (d - 1), 1)
+
+
+def contrastive(z: torch.Tensor) -> torch.Tensor:
+    """Time-contrastive InfoNCE over the features z (B, T, D) of one chunk: sampled every
+    ``EVERY`` steps, each stream's unit features pick out its own ``GAP`` steps later
+    (cosine over ``TEMPERATURE``) among the other streams' at every sampled time. Only other
+    streams are negatives: a code of the time within a stream, or a drift every stream shares,
+    cannot meet it; what tells the streams apart in one window is mostly where they are."""
+    u = torch.nn.functional.normalize(z[:, ::EVERY], dim=-1)  # (B, S, D)
+    b, s, d = u.shape
+    shift = GAP // EVERY
+    if s <= shift:
+        return z.sum() * 0.0
+    anchors = u[:, : s - shift].reshape(-1, d)  # (B (S - shift), D)
+    logits = anchors @ u.reshape(-1, d).T / TEMPERATURE  # (B (S - shift), B S)
+    stream_a = torch.arange(b).repeat_interleave(s - shift)
+    target = stream_a * s + torch.arange(s - shift).repeat(b) + shift
+    stream_c = torch.arange(b).repeat_interleave(s)
+    own = stream_a[:, None] == stream_c[None, :]
+    own[torch.arange(len(target)), target] = False
+    return torch.nn.functional.cross_entropy(logits.masked_fill(own, -torch.inf), target)
 
 
 def main() -> None:
@@ -67,7 +90,7 @@ def main() -> None:
         default="floor",
         help="floor: slowness over variance + 1e-4 (the first pilot); hinge: + 1e-8, "
         "and each slow dimension's spread held at least learn.slowness.LEAST_STD; sfa: hinge, and the slow "
-        "dimensions decorrelated",
+        "dimensions decorrelated; contrastive: time-contrastive InfoNCE, no slowness",
     )
     ap.add_argument("--save", default=None, help="write the trained weights here (.pt)")
     args = ap.parse_args()
@@ -91,7 +114,7 @@ def main() -> None:
     length = memory_in.shape[1]
     draw = torch.Generator().manual_seed(args.seed)
     for epoch in range(args.epochs):
-        t0, state, total, count, parts = time.time(), None, 0.0, 0, [0.0, 0.0]
+        t0, state, total, count, parts = time.time(), None, 0.0, 0, [0.0, 0.0, 0.0]
         if args.heading == "odometry":  # each stream's start heading drawn anew
             memory_in = turned(memory_in, torch.rand(n_streams, generator=draw) * 2 * math.pi)
         for i in range(0, length - k, horizon):
@@ -105,7 +128,11 @@ def main() -> None:
             if args.slow_dims:
                 floor = FLOOR[args.slow_form]
                 slow = slowness(z[..., : args.slow_dims], floor)
-                prior = slow
+                prior = (
+                    contrastive(z[..., : args.slow_dims])
+                    if args.slow_form == "contrastive"
+                    else slow
+                )
                 if args.slow_form in ("hinge", "sfa"):
                     prior = prior + spread_hinge(z[..., : args.slow_dims])
                 if args.slow_form == "sfa":
@@ -113,6 +140,7 @@ def main() -> None:
                 loss = loss + args.slow_weight * prior
                 parts[0] += float(slow.detach()) * (j - i)
                 parts[1] += float(slowness(z.detach()[..., args.slow_dims :], floor)) * (j - i)
+                parts[2] += float(prior.detach()) * (j - i)
             opt.zero_grad()
             loss.backward()
             opt.step()
@@ -120,6 +148,7 @@ def main() -> None:
             total, count = total + prediction * (j - i), count + (j - i)
         slow_log = (
             f", slowness {parts[0] / count:.4f} (the other dimensions {parts[1] / count:.4f})"
+            + (f", InfoNCE {parts[2] / count:.3f}" if args.slow_form == "contrastive" else "")
             if args.slow_dims
             else ""
         )
