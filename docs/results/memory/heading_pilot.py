@@ -82,6 +82,7 @@ def main() -> None:
     ap.add_argument("--epochs", type=int, default=30)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--probe-every", type=int, default=0, help="probe every N epochs too")
+    ap.add_argument("--ahead", type=int, default=None, help="K, steps predicted (the kind's: 32)")
     ap.add_argument("--slow-dims", type=int, default=0, help="z_s dimensions under slowness")
     ap.add_argument("--slow-weight", type=float, default=0.0, help="weight of their slowness")
     ap.add_argument(
@@ -98,7 +99,7 @@ def main() -> None:
     torch.set_num_threads(1)
     settings = TrainConfig.of(REC_SMA)
     k, every, horizon, n_streams = (
-        settings.ahead,
+        args.ahead or settings.ahead,
         settings.ahead_every,
         settings.horizon,
         settings.batch_size,
@@ -169,6 +170,7 @@ def main() -> None:
     result = {
         "heading": args.heading,
         "epochs": args.epochs,
+        "ahead": k,
         "slow_dims": args.slow_dims,
         "slow_weight": args.slow_weight,
         "probes": probes_of(fresh, z_fit, z),
