@@ -1,4 +1,4 @@
-"""The slowness pilots' room accuracy by epoch, from their logs in ``slowness/``.
+"""The slowness and contrastive pilots' room accuracy by epoch, from their logs in ``slowness/``.
 
     python docs/results/memory/slowness_plot.py [--out docs/results/memory/slowness/room.png]
 
@@ -30,6 +30,12 @@ RUNS = {  # log name: (label, colour)
     "hinge_w1_s2": ("hinge, W = 1", "tab:blue"),
     "hinge_w10": ("hinge, W = 10", "tab:purple"),
     "sfa_w1": ("sfa, W = 1", "tab:green"),
+    "contrastive_w1_s0": ("contrastive, W = 1", "tab:brown"),
+    "contrastive_w1_s1": ("contrastive, W = 1", "tab:brown"),
+    "contrastive_w1_s2": ("contrastive, W = 1", "tab:brown"),
+    "k64_hinge_w1_s0": ("hinge, W = 1, K = 64", "tab:cyan"),
+    "k64_hinge_w1_s1": ("hinge, W = 1, K = 64", "tab:cyan"),
+    "k64_hinge_w1_s2": ("hinge, W = 1, K = 64", "tab:cyan"),
 }
 
 
@@ -61,7 +67,7 @@ def main() -> None:
     ax.set_ylim(0.3, 1.02)
     ax.set_xlabel("epochs (Rooms1, 1,000,000 steps)")
     ax.set_ylabel("room, balanced accuracy (fresh database)")
-    ax.set_title("Rec-SMA with a slowness prior on 4 of z_s's 10 dimensions")
+    ax.set_title("Rec-SMA with a prior on 4 of z_s's 10 dimensions (Rooms1)")
     ax.legend(fontsize=8, loc="center right")
     fig.tight_layout()
     tmp = args.out.with_suffix(".tmp.png")
