@@ -67,11 +67,9 @@ def print_table(columns: dict[str, dict[str, list[float]]]) -> None:
         print(f"| {name} | " + " | ".join(cells) + " |")
 
 
-def print_paired(columns: dict[str, dict[str, list[float]]], folders: list[Path]) -> None:
-    """The first column minus the second, seed by seed, for every probe both hold."""
-    names = [sorted(p.name for p in folder.glob("s[0-9]*")) for folder in folders[:2]]
-    if len(columns) < 2 or names[0] != names[1]:
-        raise SystemExit(f"--paired: the first two columns must hold the same seeds, got {names}")
+def print_paired(columns: dict[str, dict[str, list[float]]]) -> None:
+    """The first column minus the second, seed by seed (the caller checks that their seeds
+    are the same), for every probe both hold."""
     (a, first), (b, second) = list(columns.items())[:2]
     print(f"\n| probe | {a} minus {b}, by seed: mean [t 95 %] | by seed |")
     print("|---|---|---|")
@@ -130,7 +128,12 @@ def main() -> None:
         folders.append(Path(folder))
     print_table(columns)
     if args.paired:
-        print_paired(columns, folders)
+        names = [sorted(p.name for p in folder.glob("s[0-9]*")) for folder in folders[:2]]
+        if len(columns) < 2 or names[0] != names[1]:
+            raise SystemExit(
+                f"--paired: the first two columns must hold the same seeds, got {names}"
+            )
+        print_paired(columns)
     if args.png is not None:
         plot_room(columns, args.png, args.ceiling, args.world)
 

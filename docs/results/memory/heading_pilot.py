@@ -34,7 +34,11 @@ from pose_supervised import heading_probes, memory_z, probes_of, readings, strea
 from sensorimotor.analysis.probes import PROBE_FIT_MAX
 from sensorimotor.learn.config import TrainConfig
 from sensorimotor.learn.models import REC_SMA, ModelConfig, build_model
-from sensorimotor.learn.slowness import slowness, spread_hinge  # the hinge form: a setting now
+from sensorimotor.learn.slowness import (  # the hinge form: a setting now
+    slowness,
+    spread_hinge,
+    window_variance,
+)
 from sensorimotor.sim.database import load_database, scale_motors, scale_sensors
 
 FLOOR = {"floor": 1e-4, "hinge": 1e-8, "sfa": 1e-8, "contrastive": 1e-8}  # of ``slowness``
@@ -198,7 +202,7 @@ def windows_of(z: torch.Tensor, floor: float, window: int = 256) -> dict:
         "test_slowness_per_dim": [
             round(float(slowness(z[..., i : i + 1], floor)), 5) for i in dims
         ],
-        "test_spread_per_dim": [float(z[..., i].var(dim=1, unbiased=False).mean()) for i in dims],
+        "test_spread_per_dim": [float(v) for v in window_variance(z)],
     }
 
 

@@ -4,8 +4,9 @@
         --setting slowness/contrastive_w1_s{0,1,2}.log --control slowness/hinge_w1{,_s1,_s2}.log
 
 Each log is ``heading_pilot.py``'s output (a JSON line of probes every ``--probe-every``
-epochs and one at the end); the two lists pair by position (seed by seed). Prints each probe's
-mean and Student-t 95 % interval for both settings and for the paired difference.
+epochs and one at the end); the two lists pair by position (seed by seed). Prints
+``five_seeds.py``'s tables: each probe's mean and Student-t 95 % interval for both settings,
+then the setting minus the control, seed by seed.
 """
 
 from __future__ import annotations
@@ -14,15 +15,7 @@ import argparse
 import json
 from pathlib import Path
 
-from sensorimotor.stats import paired_differences, t_interval
-
-PROBES = {  # the printed name: the path in a probes dict
-    "room (balanced accuracy)": ("room", "balanced_accuracy"),
-    "R^2 x": ("position", "r2", "x"),
-    "R^2 y": ("position", "r2", "y"),
-    "median position error": ("position", "median_error"),
-    "KNN-MSE": ("knn_mse", "value"),
-}
+from five_seeds import PROBES, print_paired, print_table
 
 
 def probes_at(log: Path, epoch: int) -> dict:
@@ -35,16 +28,18 @@ def probes_at(log: Path, epoch: int) -> dict:
     raise SystemExit(f"{log}: no probes at epoch {epoch}")
 
 
-def value(probes: dict, path: tuple[str, ...]) -> float:
-    for key in path:
-        probes = probes[key]
-    return float(probes)
-
-
-def summary(values: list[float]) -> str:
-    low, high = t_interval(values)
-    mean = sum(values) / len(values)
-    return f"{mean:.3f} [{low:.3f}, {high:.3f}] ({', '.join(f'{v:.3f}' for v in values)})"
+def column(logs: list[Path], epoch: int) -> dict[str, list[float]]:
+    """``{probe: [value of each seed]}``, as ``five_seeds.probe_table`` gives for folders."""
+    probes = [probes_at(log, epoch) for log in logs]
+    table = {}
+    for name, path in PROBES.items():
+        values = []
+        for value in probes:
+            for key in path:
+                value = value[key]
+            values.append(float(value))
+        table[name] = values
+    return table
 
 
 def main() -> None:
@@ -55,16 +50,12 @@ def main() -> None:
     args = ap.parse_args()
     if len(args.setting) != len(args.control):
         raise SystemExit("--setting and --control pair by seed: give as many logs to each")
-    setting = [probes_at(p, args.epoch) for p in args.setting]
-    control = [probes_at(p, args.epoch) for p in args.control]
-    print(f"| at {args.epoch} epochs | setting | control | paired difference |")
-    print("|---|---|---|---|")
-    for name, path in PROBES.items():
-        a = [value(p, path) for p in setting]
-        b = [value(p, path) for p in control]
-        low, high = t_interval(paired_differences(a, b))
-        mean = sum(paired_differences(a, b)) / len(a)
-        print(f"| {name} | {summary(a)} | {summary(b)} | {mean:+.3f} [{low:+.3f}, {high:+.3f}] |")
+    columns = {
+        f"setting, {args.epoch} epochs": column(args.setting, args.epoch),
+        "control": column(args.control, args.epoch),
+    }
+    print_table(columns)
+    print_paired(columns)
 
 
 if __name__ == "__main__":

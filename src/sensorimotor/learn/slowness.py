@@ -17,20 +17,24 @@ FLOOR = 1e-8  # added to a window's variance: the ratio stays finite for a const
 LEAST_STD = 0.1  # a slow dimension's least spread within a window (the free ones: 0.3-0.8)
 
 
+def window_variance(z: torch.Tensor) -> torch.Tensor:
+    """Each dimension's variance within a stream's window of z (..., B, T, D), averaged over
+    the B streams -> (..., D)."""
+    return z.var(dim=-2, unbiased=False).mean(-2)
+
+
 def slowness(z: torch.Tensor, floor: float = FLOOR) -> torch.Tensor:
     """How fast the features z (..., B, T, D) change within each of B streams' windows: each
     dimension's mean squared step over its variance within a stream (averaged over streams,
     plus ``floor``), averaged over the dimensions -> (...,)."""
     steps = (z[..., 1:, :] - z[..., :-1, :]).square().mean((-3, -2))  # (..., D)
-    spread = z.var(dim=-2, unbiased=False).mean(-2)  # (..., D): within each stream
-    return (steps / (spread + floor)).mean(-1)
+    return (steps / (window_variance(z) + floor)).mean(-1)
 
 
 def spread_hinge(z: torch.Tensor) -> torch.Tensor:
     """How far each dimension's standard deviation within the windows of z (..., B, T, D)
     falls below ``LEAST_STD``, squared and averaged over the dimensions -> (...,)."""
-    spread = z.var(dim=-2, unbiased=False).mean(-2)  # (..., D)
-    return torch.relu(LEAST_STD - spread.sqrt()).square().mean(-1)
+    return torch.relu(LEAST_STD - window_variance(z).sqrt()).square().mean(-1)
 
 
 def slowness_prior(z: torch.Tensor, dims: int) -> torch.Tensor:
