@@ -76,3 +76,26 @@ def test_the_memory_experiment_needs_a_world_with_rooms(tmp_path):
     ctx = _context(tmp_path, {}, {}, [], worlds=("square",))
     with pytest.raises(InputError, match="needs rooms1 or rooms2"):
         memory.run(ctx)
+
+
+def test_the_ideal_observer_goes_through_the_same_probes(rooms1_db_path, tmp_path, monkeypatch):
+    monkeypatch.setattr(memory, "OBSERVER_FIT", 3000)  # the filter's cost, kept small
+    monkeypatch.setitem(memory.OBSERVERS, "observer", (True, 4000))
+    out = tmp_path / "observer.json"
+    probes = memory.probe_job("observer", str(rooms1_db_path), str(out), "k")["probes"]
+    assert json.loads(out.read_text(), parse_constant=float)["result"]["probes"] == probes
+    assert probes["fit_steps"] == 3000 - probes["burn_in"]
+    # it finds the place from the stream alone, where the raw readings stay near chance (1/3)
+    assert probes["room"]["balanced_accuracy"] > 0.5
+    assert probes["position"]["median_error"] < 5.0, probes
+
+
+def test_the_observer_without_commands_refuses_another_behaviour(tmp_path):
+    from sensorimotor.sim.database import generate, save_database
+    from sensorimotor.sim.world import load_world
+
+    path = tmp_path / "smooth.npz"
+    save_database(generate(load_world("rooms1"), 3000, seed=0, behaviour="smooth"), path)
+    with pytest.raises(ValueError, match=r"smooth\.npz: the observer without commands"):
+        memory.probe_job("observer-blind", str(path), str(tmp_path / "o.json"), "k")
+    assert not (tmp_path / "o.json").exists()

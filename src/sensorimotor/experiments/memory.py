@@ -37,6 +37,13 @@ FRESH_SEED = 1  # the probes' databases: the reproduction's are seed 0
 ROOMED = ("rooms1", "rooms2")  # the worlds that name rooms
 ABLATED_ON = "rooms1"
 POSE = "pose"  # the ceiling: (x, y, cos, sin) of the true pose through the same probes
+OBSERVERS = {  # the ideal observer: does it read the commands, and its particles
+    "observer": (True, 4000),
+    "observer-blind": (False, 4000),
+    "observer-16k": (True, 16000),  # the check of the count
+    "observer-blind-16k": (False, 16000),
+}
+OBSERVER_FIT = 20_000  # training-split steps the observer's probes are fitted on (its cost)
 AHEAD = dict(KINDS[REC_SMA].training)["ahead"]  # the open-loop curve: every variant to Rec-SMA's K
 WHERE = "issue 32 (an action-conditioned recurrent encoder), before any Rec-SMA was trained"
 
@@ -88,7 +95,8 @@ def _config(rep, variant: Variant, seed: int | None = None) -> dict:
 
 
 def probe_job(run: str, data: str, out: str, key: str) -> dict:
-    """Probe one representation (a run folder, ``raw`` or ``pose``) on ``data``; with a run,
+    """Probe one representation (a run folder, ``raw``, ``pose`` or an ideal observer of
+    ``OBSERVERS``) on ``data``; with a run,
     also its one-step test error and, for a motor memory, its open-loop errors."""
     from sensorimotor.analysis.analyze import probe_places
     from sensorimotor.analysis.probes import place_probes
@@ -103,13 +111,17 @@ def probe_job(run: str, data: str, out: str, key: str) -> dict:
 
     db = load_database(data)
     result: dict = {}
-    if run == POSE:
+    if run == POSE or run in OBSERVERS:
         fit, test = db.take("train"), db.take("test")
         world = db.world
-        zf, z = pose_features(fit.poses), pose_features(test.poses)
-        rooms = [world.room_index(q[:, 0], q[:, 1]) for q in (fit.poses, test.poses)]
+        if run == POSE:
+            zf, z = pose_features(fit.poses), pose_features(test.poses)
+        else:
+            zf, z = (observer_features(db, q, *OBSERVERS[run]) for q in (fit, test))
+        fit_poses = fit.poses[: len(zf)]
+        rooms = [world.room_index(q[:, 0], q[:, 1]) for q in (fit_poses, test.poses)]
         size = (world.width, world.height)
-        result["probes"] = place_probes(zf, fit.poses, z, test.poses, *rooms, size)
+        result["probes"] = place_probes(zf, fit_poses, z, test.poses, *rooms, size)
     else:
         loaded = run if run == "raw" else load_run(run)
         result["probes"] = probe_places(loaded, db)
@@ -122,6 +134,20 @@ def probe_job(run: str, data: str, out: str, key: str) -> dict:
                 result["ahead"] = ahead_errors(loaded.model, s, m, AHEAD).tolist()
     write_json_atomic(Path(out), {"key": key, "result": result})
     return result
+
+
+def observer_features(db, split, commands: bool, particles: int) -> np.ndarray:
+    """The ideal observer's belief (``analysis.observer``) over the first ``OBSERVER_FIT`` steps
+    of a split of ``db``; ValueError for a database of another behaviour than the paper's
+    when the observer draws the commands from it."""
+    from sensorimotor.analysis.observer import observe
+
+    if not commands and db.behaviour != "paper":
+        raise ValueError(
+            f"{db.source}: the observer without commands knows the paper's behaviour only"
+        )
+    n = min(len(split), OBSERVER_FIT)
+    return observe(db.world, split.sensors[:n], split.motors[:n], db.layout, commands, particles)
 
 
 def pose_features(poses: np.ndarray) -> np.ndarray:
