@@ -35,10 +35,13 @@ def _context(tmp_path, data: dict, runs: dict, seen: list, worlds=("rooms1",)):
     return ex.Context(rep, "memory", runner, 1, None, print)
 
 
-@pytest.mark.slow  # five trainings and twenty probes on 20,000-step databases
+@pytest.mark.slow  # five trainings and twenty-two probes on 20,000-step databases
 def test_the_memory_experiment_trains_the_variants_probes_everything_and_keeps_it(
-    rooms1_db_path, tmp_path
+    rooms1_db_path, tmp_path, monkeypatch
 ):
+    monkeypatch.setattr(memory, "OBSERVER_FIT", 3000)  # the filter's cost, kept small
+    for name in memory.SHOWN_OBSERVERS:
+        monkeypatch.setitem(memory.OBSERVERS, name, (memory.OBSERVERS[name][0], 4000))
     runs = {k: tmp_path / "runs" / f"rooms1__{k}__s0" for k in paper_kinds()}
     for kind, run in runs.items():
         sensorimotor.train(rooms1_db_path, run, sensorimotor.TrainConfig(model=kind, max_epochs=1))
@@ -48,11 +51,15 @@ def test_the_memory_experiment_trains_the_variants_probes_everything_and_keeps_i
     assert json.loads((tmp_path / "memory" / "memory.json").read_text()) == found
     n_variants = len(memory.VARIANTS)
     assert sum(name.startswith("train") for name in seen) == n_variants
-    assert sum(name.startswith("probe") for name in seen) == 2 + len(paper_kinds()) + n_variants
+    shown = 2 + len(memory.SHOWN_OBSERVERS) + len(paper_kinds()) + n_variants
+    assert sum(name.startswith("probe") for name in seen) == shown
     rows = found["rows"]["rooms1"]
-    assert list(rows) == ["pose", "raw", *paper_kinds(), *(v.name for v in memory.VARIANTS)]
+    assert list(rows) == [
+        "pose", *memory.SHOWN_OBSERVERS, "raw", *paper_kinds(), *(v.name for v in memory.VARIANTS)
+    ]  # fmt: skip
     assert rows["pose"]["r2_x"]["mean"] > 0.99  # the ceiling holds the position exactly
     assert rows["pose"]["room"]["mean"] > rows["raw"]["room"]["mean"]
+    assert rows["observer"]["room"]["mean"] > rows["raw"]["room"]["mean"]  # a memory's ceiling
     assert rows["raw"]["error"]["mean"] is None
     assert rows[REC_SM]["error"]["n"] == 1
     assert all(len(curve) == 32 for curve in found["curves"].values())
@@ -68,6 +75,7 @@ def test_the_memory_experiment_trains_the_variants_probes_everything_and_keeps_i
     md = to_markdown(ex.sections(SimpleNamespace(out=tmp_path), {"memory": found}), tmp_path)
     assert "## A memory that reads the motor commands" in md
     assert "true pose (ceiling)" in md
+    assert "ideal observer (ceiling for a memory)" in md
     assert "(strongest baseline)" in md
     assert "(memory/memory.png)" in md
 
@@ -80,7 +88,7 @@ def test_the_memory_experiment_needs_a_world_with_rooms(tmp_path):
 
 def test_the_ideal_observer_goes_through_the_same_probes(rooms1_db_path, tmp_path, monkeypatch):
     monkeypatch.setattr(memory, "OBSERVER_FIT", 3000)  # the filter's cost, kept small
-    monkeypatch.setitem(memory.OBSERVERS, "observer", (True, 4000))
+    monkeypatch.setitem(memory.OBSERVERS, "observer", (True, 4000))  # 16,000 is the default
     out = tmp_path / "observer.json"
     probes = memory.probe_job("observer", str(rooms1_db_path), str(out), "k")["probes"]
     assert json.loads(out.read_text(), parse_constant=float)["result"]["probes"] == probes

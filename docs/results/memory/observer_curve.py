@@ -22,14 +22,18 @@ from sensorimotor.sim.database import load_database
 GOALS = {"rooms1": 0.90, "rooms2": 0.85}  # the issue's, set before any Rec-SMA was trained
 
 
-def windows(data: str, n: int, length: int, particles: int) -> dict:
+VARIANTS = {"commands": True, "blind": False}  # name -> does the observer read the commands
+
+
+def windows(data: str, n: int, length: int, particles: int, names=tuple(VARIANTS)) -> dict:
     """(W, L) bool: is the observer's likeliest room the true one, for each window and step,
     with and without the commands; windows evenly spaced over the test split."""
     db = load_database(data)
     test, world = db.take("test"), db.world
     starts = np.linspace(0, len(test) - length, n).astype(int)
     out = {"starts": starts, "world": world.name}
-    for name, commands in (("commands", True), ("blind", False)):
+    for name in names:
+        commands = VARIANTS[name]
         right = np.zeros((n, length), dtype=bool)
         inside = np.zeros((n, length), dtype=bool)
         began = time.time()
@@ -64,6 +68,8 @@ def plot(files: list[str], png: str) -> None:
             ("commands", "tab:blue", "with the commands"),
             ("blind", "tab:orange", "without (draws them from the behaviour)"),
         ):
+            if name not in d:
+                continue
             ax.plot(share_right(d[name], d[f"{name}_inside"]), color=colour, label=label)
         ax.axvline(BURN_IN, color="grey", ls=":", label=f"the probes' burn-in ({BURN_IN})")
         ax.axhline(GOALS[world], color="k", ls="--", lw=0.8, label=f"the goal ({GOALS[world]})")
@@ -82,20 +88,22 @@ def main() -> None:
     p.add_argument("--windows", type=int, default=24)
     p.add_argument("--length", type=int, default=1000)
     p.add_argument("--particles", type=int, default=16000)
+    p.add_argument("--only", choices=tuple(VARIANTS), help="one observer, not both")
     p.add_argument("--plot", nargs="+", help="draw these .npz files instead")
     p.add_argument("--png", default="curve.png")
     a = p.parse_args()
     if a.plot:
         plot(a.plot, a.png)
         return
-    out = windows(a.data, a.windows, a.length, a.particles)
+    names = (a.only,) if a.only else tuple(VARIANTS)
+    out = windows(a.data, a.windows, a.length, a.particles, names)
     np.savez(a.out, **out)
     summary = {
         name: {
             f"after {k}": float(share_right(out[name], out[f"{name}_inside"])[k:].mean())
             for k in (0, 100, BURN_IN, 500)
         }
-        for name in ("commands", "blind")
+        for name in names
     }
     print(json.dumps(summary, indent=1))
 

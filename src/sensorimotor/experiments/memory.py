@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sensorimotor.analysis.observer import PARTICLES
 from sensorimotor.errors import InputError
 from sensorimotor.files import file_hash, read_json_if_any, write_json_atomic
 from sensorimotor.jobs.cache import read_key, stage_key
@@ -38,11 +39,12 @@ ROOMED = ("rooms1", "rooms2")  # the worlds that name rooms
 ABLATED_ON = "rooms1"
 POSE = "pose"  # the ceiling: (x, y, cos, sin) of the true pose through the same probes
 OBSERVERS = {  # the ideal observer: does it read the commands, and its particles
-    "observer": (True, 4000),
-    "observer-blind": (False, 4000),
-    "observer-16k": (True, 16000),  # the check of the count
-    "observer-blind-16k": (False, 16000),
+    "observer": (True, PARTICLES),  # the count the rule's check kept (4,000 was too few)
+    "observer-blind": (False, PARTICLES),
+    "observer-4k": (True, 4000),
+    "observer-blind-4k": (False, 4000),
 }
+SHOWN_OBSERVERS = ("observer", "observer-blind")  # rows of the experiment
 OBSERVER_FIT = 20_000  # training-split steps the observer's probes are fitted on (its cost)
 AHEAD = dict(KINDS[REC_SMA].training)["ahead"]  # the open-loop curve: every variant to Rec-SMA's K
 WHERE = "issue 32 (an action-conditioned recurrent encoder), before any Rec-SMA was trained"
@@ -215,6 +217,8 @@ def run(ctx) -> dict:
     shown: dict[tuple[str, str, int], str] = {}  # (representation, world, seed) -> run or raw
     for w in worlds:
         shown[(POSE, w, 0)] = POSE
+        for name in SHOWN_OBSERVERS:
+            shown[(name, w, 0)] = name
         shown[("raw", w, 0)] = "raw"
         for kind in paper_kinds():
             for seed in range(rep.seeds):
@@ -224,7 +228,12 @@ def run(ctx) -> dict:
     hashes = {w: file_hash(fresh[w]) for w in worlds}
     files, jobs = {}, []
     for (name, w, seed), src in shown.items():
-        weights = src if src in (POSE, "raw") else file_hash(Path(src) / "model.pt")
+        if src in OBSERVERS:  # an observer's settings stand for its weights
+            weights = f"{src} {OBSERVERS[src]}"
+        elif src in (POSE, "raw"):
+            weights = src
+        else:
+            weights = file_hash(Path(src) / "model.pt")
         key = stage_key({"run": weights, "data": hashes[w], "version": __version__})
         out = d / "probes" / f"{name}__{w}__s{seed}.json"
         files[(name, w, seed)] = out
@@ -259,7 +268,7 @@ METRICS = {  # name -> how to read it from a probe result
 
 def _numbers(found: dict, worlds: list[str], seeds: int) -> dict:
     """Per world and representation, each metric over seeds; the open-loop curves; verdicts."""
-    names = [POSE, "raw", *paper_kinds(), *(v.name for v in VARIANTS)]
+    names = [POSE, *SHOWN_OBSERVERS, "raw", *paper_kinds(), *(v.name for v in VARIANTS)]
     table_rows: dict[str, dict] = {}
     for w in worlds:
         rows = {}
@@ -323,7 +332,8 @@ def _verdicts(rows: dict) -> list[Verdict]:
                 f"{t['room_lower']:.2f}",
                 test="class-balanced logistic probe, fitted on the fresh training split, "
                 "scored on its test split after 200 steps; mean over seeds, Student-t 95 %",
-                numbers=f"{_fmt(room)} (ceiling {_fmt(rows[w].get(POSE, {}).get('room'))})",
+                numbers=f"{_fmt(room)} (ceiling {_fmt(rows[w].get(POSE, {}).get('room'))}, "
+                f"ideal observer {_fmt(rows[w].get('observer', {}).get('room'))})",
                 holds=holds,
                 provenance=BEFORE,
                 where=WHERE,
@@ -357,7 +367,9 @@ def _verdicts(rows: dict) -> list[Verdict]:
                 threshold=f"Rec-SMA >= {t['room'][ABLATED_ON]:.2f} and the ablation <= "
                 f"{t['ablation_room']:.2f}, balanced room accuracy on {ABLATED_ON}",
                 test="the same probe on the ablation's representation",
-                numbers=f"ablation {_fmt(ablated['room'])}, Rec-SMA {full:.2f}",
+                numbers=f"ablation {_fmt(ablated['room'])}, Rec-SMA {full:.2f}; the ideal "
+                "observer without the commands "
+                f"{_fmt(rows[ABLATED_ON].get('observer-blind', {}).get('room'))}",
                 holds=ablated["room"]["mean"] <= t["ablation_room"] if reached else None,
                 provenance=BEFORE,
                 where=WHERE,
@@ -366,9 +378,17 @@ def _verdicts(rows: dict) -> list[Verdict]:
     return out
 
 
+LABELS = {
+    POSE: "true pose (ceiling)",
+    "observer": "ideal observer (ceiling for a memory)",
+    "observer-blind": "ideal observer without the commands",
+    "raw": "raw readings",
+}
+
+
 def _label(name: str) -> str:
-    if name in (POSE, "raw"):
-        return {"pose": "true pose (ceiling)", "raw": "raw readings"}[name]
+    if name in LABELS:
+        return LABELS[name]
     if name in KINDS:
         return KINDS[name].short
     return next(v.label for v in VARIANTS if v.name == name)
@@ -430,7 +450,10 @@ def section(rep, found: dict) -> list[Block]:
             "loop. "
             "Each representation is probed on a fresh database of each world (seed "
             f"{FRESH_SEED}): probes fitted on its training split, scored on its test split after "
-            "200 steps. Mean over seeds [Student-t 95 %]. The true pose is the ceiling."
+            "200 steps. Mean over seeds [Student-t 95 %]. The true pose is the ceiling for a "
+            "code of the place; the ideal observer (a particle filter that knows the walls, "
+            "the lasers and the behaviour, and reads the same stream from the same empty "
+            "start) is the ceiling for a memory of the stream."
         ),
     ]
     for w in found["worlds"]:
