@@ -4,7 +4,7 @@ without the commands (``analysis.observer``; docs/results/memory/README.md, "An 
 observer").
 
     python docs/results/memory/observer_curve.py rooms1_fresh1.npz --out observer/curve_rooms1
-    python docs/results/memory/observer_curve.py --plot observer/curve_rooms1.npz observer/curve_rooms2.npz --png observer/curve.png
+    python docs/results/memory/observer_curve.py --plot observer/curve_rooms*.npz --png observer/curve.png
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from sensorimotor.analysis.observer import observe
+from sensorimotor.analysis.observer import PARTICLES, observe
 from sensorimotor.analysis.probes import BURN_IN
 from sensorimotor.sim.database import load_database
 
@@ -31,7 +31,7 @@ def windows(data: str, n: int, length: int, particles: int, names=tuple(VARIANTS
     db = load_database(data)
     test, world = db.take("test"), db.world
     starts = np.linspace(0, len(test) - length, n).astype(int)
-    out = {"starts": starts, "world": world.name}
+    out = {"starts": starts, "world": world.name, "particles": particles}
     for name in names:
         commands = VARIANTS[name]
         right = np.zeros((n, length), dtype=bool)
@@ -60,17 +60,21 @@ def plot(files: list[str], png: str) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, len(files), figsize=(5.2 * len(files), 3.6), squeeze=False)
-    for ax, f in zip(axes[0], files, strict=True):
-        d = np.load(f, allow_pickle=False)
-        world = str(d["world"])
-        for name, colour, label in (
-            ("commands", "tab:blue", "with the commands"),
-            ("blind", "tab:orange", "without (draws them from the behaviour)"),
-        ):
-            if name not in d:
-                continue
-            ax.plot(share_right(d[name], d[f"{name}_inside"]), color=colour, label=label)
+    runs = [np.load(f, allow_pickle=False) for f in files]
+    worlds = list(dict.fromkeys(str(d["world"]) for d in runs))
+    fig, axes = plt.subplots(1, len(worlds), figsize=(5.2 * len(worlds), 3.6), squeeze=False)
+    styles = iter(("-", "--", ":", "-."))
+    style = {n: next(styles) for n in sorted({int(d["particles"]) for d in runs})}
+    for ax, world in zip(axes[0], worlds, strict=True):
+        for d in (d for d in runs if str(d["world"]) == world):
+            n = int(d["particles"])
+            for name, colour, label in (
+                ("commands", "tab:blue", "with the commands"),
+                ("blind", "tab:orange", "without (draws them from the behaviour)"),
+            ):
+                if name in d:
+                    ax.plot(share_right(d[name], d[f"{name}_inside"]), color=colour,
+                            ls=style[n], lw=1.2, label=f"{label}, {n:,} particles")  # fmt: skip
         ax.axvline(BURN_IN, color="grey", ls=":", label=f"the probes' burn-in ({BURN_IN})")
         ax.axhline(GOALS[world], color="k", ls="--", lw=0.8, label=f"the goal ({GOALS[world]})")
         ax.set(title=f"{world}: {len(d['starts'])} windows of the fresh test split",
@@ -87,7 +91,7 @@ def main() -> None:
     p.add_argument("--out", help="the .npz to write (without the suffix)")
     p.add_argument("--windows", type=int, default=24)
     p.add_argument("--length", type=int, default=1000)
-    p.add_argument("--particles", type=int, default=16000)
+    p.add_argument("--particles", type=int, default=PARTICLES)
     p.add_argument("--only", choices=tuple(VARIANTS), help="one observer, not both")
     p.add_argument("--plot", nargs="+", help="draw these .npz files instead")
     p.add_argument("--png", default="curve.png")
@@ -98,14 +102,23 @@ def main() -> None:
     names = (a.only,) if a.only else tuple(VARIANTS)
     out = windows(a.data, a.windows, a.length, a.particles, names)
     np.savez(a.out, **out)
-    summary = {
+    text = json.dumps(summary(out), indent=1, allow_nan=False)
+    with open(f"{a.out}.json", "w") as f:
+        f.write(text + "\n")
+    print(text)
+
+
+def summary(d) -> dict:
+    """The share of steps whose likeliest room is right, from step k on (k = 0, 100, the
+    burn-in, 500), for each observer in ``d`` (``windows``' output or its .npz)."""
+    return {
         name: {
-            f"after {k}": float(share_right(out[name], out[f"{name}_inside"])[k:].mean())
+            f"after {k}": float(share_right(d[name], d[f"{name}_inside"])[k:].mean())
             for k in (0, 100, BURN_IN, 500)
         }
-        for name in names
+        for name in VARIANTS
+        if name in d
     }
-    print(json.dumps(summary, indent=1))
 
 
 if __name__ == "__main__":

@@ -381,7 +381,7 @@ def _verdicts(rows: dict) -> list[Verdict]:
 LABELS = {
     POSE: "true pose (ceiling)",
     "observer": "ideal observer (ceiling for a memory)",
-    "observer-blind": "ideal observer without the commands",
+    "observer-blind": "ideal observer, no commands",
     "raw": "raw readings",
 }
 
