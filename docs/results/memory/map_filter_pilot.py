@@ -61,11 +61,9 @@ def step(b, table, z, m_prev):
     the log of the reading's predictive likelihood (B,)."""
     if m_prev is not None:
         b = move(b, m_prev[:, 0], m_prev[:, 1])
-    ll = loglik(table, z)
-    top = ll.amax(dim=(1, 2, 3), keepdim=True)
-    post = b * torch.exp(ll - top)
-    c = post.sum(dim=(1, 2, 3), keepdim=True).clamp_min(1e-30)
-    return post / c, (torch.log(c) + top).flatten()
+    joint = torch.log(b.clamp_min(1e-30)) + loglik(table, z)  # in logs: a surprised belief
+    lc = torch.logsumexp(joint.flatten(1), dim=1)  # underflows otherwise, and its gradient
+    return torch.exp(joint - lc[:, None, None, None]), lc
 
 
 def uniform(n: int) -> torch.Tensor:
