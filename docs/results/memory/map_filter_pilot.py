@@ -4,6 +4,7 @@ observation model, trained by the readings' likelihood alone (docs/results/memor
 "A learner that builds the observer's map"; Jonschkowski & Brock 2016).
 
     PYTHONPATH=src python docs/results/memory/map_filter_pilot.py rooms1.npz rooms1_fresh1.npz --minutes 30 --out map_filter
+    PYTHONPATH=src python docs/results/memory/map_filter_pilot.py rooms1.npz rooms1_fresh1.npz --diagnose map_filter.pt
 """
 
 from __future__ import annotations
@@ -104,6 +105,30 @@ def probe(table, fresh) -> dict:
     }
 
 
+def diagnose(table, fresh, steps: int = 2000) -> dict:
+    """Does the belief track a place? Over the fresh test split's first ``steps``: its entropy,
+    how many latent states its peak visits, and how its peak heading follows the robot's."""
+    test = fresh.take("test")
+    z = torch.from_numpy(scale_sensors(test.sensors[:steps]))
+    m = torch.from_numpy(test.motors[:steps].astype(np.float32))
+    b, entropy, peak = uniform(1), [], []
+    with torch.no_grad():
+        for t in range(len(z)):
+            b, _ = step(b, table, z[t : t + 1], m[t - 1 : t] if t else None)
+            q = b.flatten()
+            entropy.append(float(-(q * torch.log(q.clamp_min(1e-30))).sum()))
+            peak.append(int(q.argmax()))
+    heading = np.array(peak) // (G * G) * (2 * math.pi / H)
+    true = test.poses[:steps, 2].astype(np.float64)
+    return {
+        "entropy_nats": float(np.mean(entropy)),
+        "entropy_max": math.log(H * G * G),
+        "peak_states": len(set(peak)),
+        "heading_corr_cos": float(np.corrcoef(np.cos(heading), np.cos(true))[0, 1]),
+        "heading_corr_sin": float(np.corrcoef(np.sin(heading), np.sin(true))[0, 1]),
+    }
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("data")
@@ -113,7 +138,12 @@ def main() -> None:
     p.add_argument("--lr", type=float, default=0.05)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default="map_filter")
+    p.add_argument("--diagnose", help="a trained table (.pt): print how its belief moves, and stop")
     a = p.parse_args()
+    if a.diagnose:
+        table = torch.load(a.diagnose, weights_only=True)["table"]
+        print(json.dumps(diagnose(table, load_database(a.fresh)), indent=1))
+        return
     torch.manual_seed(a.seed)
     torch.set_num_threads(1)
     rng = np.random.default_rng(a.seed)
