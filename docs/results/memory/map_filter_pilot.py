@@ -17,11 +17,13 @@ import time
 import numpy as np
 import torch
 
+from sensorimotor.analysis.observer import READING_SD, UNIFORM_SHARE
 from sensorimotor.analysis.probes import place_probes
+from sensorimotor.sim.core import MAX_RANGE
 from sensorimotor.sim.database import load_database, scale_sensors
 
 G, CELL, H = 25, 2.0, 16  # latent grid: G x G places of CELL units, H headings
-SD, UNIFORM = 0.05, 0.1  # the observer's beam model, on readings scaled to [0, 1]
+SD, UNIFORM = READING_SD / MAX_RANGE, UNIFORM_SHARE  # the observer's beam model, scaled to [0, 1]
 T, B = 256, 8  # sequence length and sequences a batch (the budget: about 3 s a batch on one core)
 PROBE_FIT = 20_000  # fresh training-split steps the probes fit on (as the observer's)
 

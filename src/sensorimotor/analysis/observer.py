@@ -58,17 +58,17 @@ def _normal():
 
 
 @numba.njit(cache=True)
-def _spawn(px, py, ph, i, free, jitter):
+def _spawn(px, py, ph, i, free):
     """Particle ``i`` afresh: a free grid point jittered within its cell, a uniform heading."""
     k = min(int(_uniform() * free.shape[0]), free.shape[0] - 1)
-    px[i] = free[k, 0] + (2.0 * _uniform() - 1.0) * jitter
-    py[i] = free[k, 1] + (2.0 * _uniform() - 1.0) * jitter
+    px[i] = free[k, 0] + (2.0 * _uniform() - 1.0) * START_JITTER
+    py[i] = free[k, 1] + (2.0 * _uniform() - 1.0) * START_JITTER
     ph[i] = wrap_angle(2.0 * math.pi * _uniform())
 
 
 @numba.njit(cache=True)
 def _filter(
-    segments, dims, start, items, angles, max_range, sensors, motors, commands, free, jitter,
+    segments, dims, start, items, angles, max_range, sensors, motors, commands, free,
     room_map, n, seed, belief,
 ):  # fmt: skip
     """Run the filter over ``sensors`` (T, R) and ``motors`` (T, 2), writing ``belief`` (T,
@@ -78,7 +78,7 @@ def _filter(
     ca, sa = np.cos(angles), np.sin(angles)
     px, py, ph = np.empty(n), np.empty(n), np.empty(n)
     for i in range(n):
-        _spawn(px, py, ph, i, free, jitter)
+        _spawn(px, py, ph, i, free)
     logw = np.zeros(n)
     lowest = np.empty(n)
     w = np.empty(n)
@@ -108,7 +108,7 @@ def _filter(
         top = logw.max()
         if not top > -np.inf:  # every particle dropped: start again
             for i in range(n):
-                _spawn(px, py, ph, i, free, jitter)
+                _spawn(px, py, ph, i, free)
             logw[:] = 0.0
             top = 0.0
         total = 0.0
@@ -142,7 +142,7 @@ def _filter(
             logw[:] = 0.0
             for i in range(n):
                 if _uniform() < FRESH_SHARE:
-                    _spawn(px, py, ph, i, free, jitter)
+                    _spawn(px, py, ph, i, free)
         for i in range(n):
             if commands:
                 d, r = motors[t, 0], motors[t, 1]
@@ -200,6 +200,6 @@ def observe(
     belief = np.zeros((len(sensors), 4 + len(world.rooms)))
     return _filter(
         segments, *grid, np.asarray(layout.angles, dtype=np.float64), float(layout.max_range),
-        sensors, motors, commands, free, START_JITTER, room_raster(world), particles,
+        sensors, motors, commands, free, room_raster(world), particles,
         seed, belief,
     )  # fmt: skip

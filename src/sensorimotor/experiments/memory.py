@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sensorimotor.analysis.observer import PARTICLES
+from sensorimotor.analysis.observer import PARTICLES, observe
 from sensorimotor.errors import InputError
 from sensorimotor.files import file_hash, read_json_if_any, write_json_atomic
 from sensorimotor.jobs.cache import read_key, stage_key
@@ -142,8 +142,6 @@ def observer_features(db, split, commands: bool, particles: int) -> np.ndarray:
     """The ideal observer's belief (``analysis.observer``) over the first ``OBSERVER_FIT`` steps
     of a split of ``db``; ValueError for a database of another behaviour than the paper's
     when the observer draws the commands from it."""
-    from sensorimotor.analysis.observer import observe
-
     if not commands and db.behaviour != "paper":
         raise ValueError(
             f"{db.source}: the observer without commands knows the paper's behaviour only"
